@@ -1,0 +1,260 @@
+//! A uniform grid over the image axes (and time, for animations) with an
+//! exact ring-by-ring k-nearest search.
+//!
+//! Why a grid: within a neighbourhood the joint space is very anisotropic
+//! (the image extent is far larger than the colour extent), which a generic
+//! k-d tree splits badly, and σ < 1 only ever needs neighbours within a few
+//! cells. Colour is not indexed: points sharing a cell are scanned.
+//!
+//! Exactness: cell sides are powers of two, so a point's cell is computed
+//! exactly and the faces of a block of cells are exact f64 values. A point
+//! outside the block differs from the query by at least the face distance g
+//! along one axis; rounding is monotone, so its computed distance is at least
+//! `sqrt(g * g)` computed the same way. That is the search's `bound`.
+
+use super::{offer_suffix, Found, NeighbourIndex};
+use crate::density::sigma::{judge, Goal, KBest};
+use crate::joint::dist2;
+
+/// Upper limit on the number of cells; the cell side doubles until it fits.
+const MAX_CELLS: usize = 1 << 22;
+
+#[derive(Clone, Copy)]
+struct Entry<const D: usize> {
+    p: [f32; D],
+    id: u32,
+}
+
+pub struct Grid<const D: usize> {
+    /// Number of gridded axes: x, y, and t for an animation (D = 6).
+    axes: usize,
+    side: [f64; 3],
+    inv: [f64; 3],
+    dims: [usize; 3],
+    cells: Vec<Vec<Entry<D>>>,
+    arena: Vec<[f32; D]>,
+}
+
+impl<const D: usize> Grid<D> {
+    /// A grid covering joint coordinates `[0, extent[a])` on each gridded
+    /// axis a (x, y, then t when D = 6).
+    pub fn new(extent: [f64; 3]) -> Grid<D> {
+        let axes = if D == 6 { 3 } else { 2 };
+        let mut side = [1.0f64; 3];
+        let dims_for = |side: &[f64; 3]| {
+            let mut d = [1usize; 3];
+            for a in 0..axes {
+                d[a] = ((extent[a] / side[a]).ceil() as usize).max(1);
+            }
+            d
+        };
+        let mut dims = dims_for(&side);
+        while dims.iter().product::<usize>() > MAX_CELLS {
+            let a = (0..axes).max_by_key(|&a| dims[a]).unwrap();
+            side[a] *= 2.0;
+            dims = dims_for(&side);
+        }
+        let inv = side.map(|s| 1.0 / s);
+        let n = dims.iter().product();
+        Grid {
+            axes,
+            side,
+            inv,
+            dims,
+            cells: (0..n).map(|_| Vec::new()).collect(),
+            arena: Vec::new(),
+        }
+    }
+
+    #[inline]
+    fn axis_value(q: &[f32; D], a: usize) -> f64 {
+        q[a] as f64
+    }
+
+    #[inline]
+    fn cell_of(&self, q: &[f32; D]) -> [usize; 3] {
+        let mut c = [0usize; 3];
+        for a in 0..self.axes {
+            // Multiplying by a power of two is exact, so floor is exact.
+            let v = (Self::axis_value(q, a) * self.inv[a]).floor();
+            c[a] = if v <= 0.0 {
+                0
+            } else {
+                (v as usize).min(self.dims[a] - 1)
+            };
+        }
+        c
+    }
+
+    #[inline]
+    fn flat(&self, c: [usize; 3]) -> usize {
+        (c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]
+    }
+
+    /// Lower bound on the distance of any point outside the block of cells
+    /// within Chebyshev distance `r` of `centre`; +∞ if the block covers the
+    /// grid.
+    fn bound(&self, q: &[f32; D], centre: [usize; 3], r: usize) -> f64 {
+        let mut b = f64::INFINITY;
+        for a in 0..self.axes {
+            let v = Self::axis_value(q, a);
+            if centre[a] > r {
+                let face = (centre[a] - r) as f64 * self.side[a];
+                let g = v - face;
+                b = b.min((g * g).sqrt());
+            }
+            if centre[a] + r + 1 < self.dims[a] {
+                let face = (centre[a] + r + 1) as f64 * self.side[a];
+                let g = face - v;
+                b = b.min((g * g).sqrt());
+            }
+        }
+        b
+    }
+
+    /// True when the block of radius r covers every cell.
+    fn covers(&self, centre: [usize; 3], r: usize) -> bool {
+        (0..self.axes).all(|a| centre[a] <= r && centre[a] + r + 1 >= self.dims[a])
+    }
+
+    /// Number of cells on ring r (an upper estimate, ignoring clipping).
+    fn ring_cells(&self, r: usize) -> usize {
+        let w = 2 * r + 1;
+        if self.axes == 3 {
+            w * w * w - (w - 2) * (w - 2) * (w - 2)
+        } else {
+            w * w - (w - 2) * (w - 2)
+        }
+    }
+
+    /// Calls `visit` on every cell at Chebyshev distance exactly `r` from
+    /// `centre`, clipped to the grid.
+    #[inline]
+    fn for_ring(&self, centre: [usize; 3], r: usize, mut visit: impl FnMut(&[Entry<D>])) {
+        let lo = |a: usize| centre[a].saturating_sub(r);
+        let hi = |a: usize| {
+            if a < self.axes {
+                (centre[a] + r).min(self.dims[a] - 1)
+            } else {
+                0
+            }
+        };
+        let (x0, x1, y0, y1, t0, t1) = (lo(0), hi(0), lo(1), hi(1), lo(2), hi(2));
+        for t in t0..=t1 {
+            let dt = t.abs_diff(centre[2]);
+            for y in y0..=y1 {
+                let dy = y.abs_diff(centre[1]).max(dt);
+                let row = (t * self.dims[1] + y) * self.dims[0];
+                if dy == r {
+                    for x in x0..=x1 {
+                        visit(&self.cells[row + x]);
+                    }
+                } else {
+                    // Interior rows: only the two end cells lie on the ring.
+                    if centre[0] >= r {
+                        visit(&self.cells[row + centre[0] - r]);
+                    }
+                    if r > 0 && centre[0] + r < self.dims[0] {
+                        visit(&self.cells[row + centre[0] + r]);
+                    }
+                }
+            }
+        }
+    }
+
+    fn brute_force(&self, q: &[f32; D], exclude: Option<u32>, goal: Goal, kb: &mut KBest) -> Found {
+        kb.clear();
+        for (id, p) in self.arena.iter().enumerate() {
+            if Some(id as u32) != exclude {
+                kb.push(dist2(p, q).sqrt());
+            }
+        }
+        let verdict = judge(kb, f64::INFINITY, goal).expect("a complete search always decides");
+        Found {
+            verdict,
+            bound: f64::INFINITY,
+            reach: u32::MAX,
+        }
+    }
+}
+
+impl<const D: usize> NeighbourIndex<D> for Grid<D> {
+    fn insert(&mut self, p: [f32; D]) -> u32 {
+        let id = u32::try_from(self.arena.len()).expect("more than 2^32 stored samples");
+        let c = self.flat(self.cell_of(&p));
+        self.cells[c].push(Entry { p, id });
+        self.arena.push(p);
+        id
+    }
+
+    fn len(&self) -> usize {
+        self.arena.len()
+    }
+
+    fn point(&self, id: u32) -> &[f32; D] {
+        &self.arena[id as usize]
+    }
+
+    fn search(&self, q: &[f32; D], exclude: Option<u32>, goal: Goal, kb: &mut KBest) -> Found {
+        kb.clear();
+        let centre = self.cell_of(q);
+        let mut r = 0usize;
+        loop {
+            if r > 0 && self.ring_cells(r) > self.arena.len() + 64 {
+                // Wide, sparse searches: scanning every point is cheaper.
+                return self.brute_force(q, exclude, goal, kb);
+            }
+            self.for_ring(centre, r, |cell| {
+                for e in cell {
+                    if Some(e.id) != exclude {
+                        kb.push(dist2(&e.p, q).sqrt());
+                    }
+                }
+            });
+            let bound = if self.covers(centre, r) {
+                f64::INFINITY
+            } else {
+                self.bound(q, centre, r)
+            };
+            if let Some(verdict) = judge(kb, bound, goal) {
+                return Found {
+                    verdict,
+                    bound,
+                    reach: r as u32,
+                };
+            }
+            r += 1;
+        }
+    }
+
+    fn recheck(
+        &self,
+        q: &[f32; D],
+        first_new: u32,
+        prev: Found,
+        goal: Goal,
+        kb: &mut KBest,
+    ) -> Found {
+        let new = self.arena.len() - first_new as usize;
+        if new > 0 {
+            if prev.bound == f64::INFINITY || new <= 256 {
+                offer_suffix(&self.arena, first_new, q, kb);
+            } else {
+                // The new points are the tails of the cells' lists.
+                let centre = self.cell_of(q);
+                for r in 0..=prev.reach as usize {
+                    self.for_ring(centre, r, |cell| {
+                        for e in cell.iter().rev().take_while(|e| e.id >= first_new) {
+                            kb.push(dist2(&e.p, q).sqrt());
+                        }
+                    });
+                }
+            }
+        }
+        match judge(kb, prev.bound, goal) {
+            Some(verdict) => Found { verdict, ..prev },
+            None => self.search(q, None, goal, kb),
+        }
+    }
+}
+

@@ -1,0 +1,108 @@
+//! kiddo's mutable k-d tree as an exact, independent index.
+//!
+//! Candidates come from kiddo's `nearest_n` with an f64 squared-Euclidean
+//! metric over the f32 points; their distances are then recomputed with the
+//! canonical [`crate::joint::dist2`], so σ is bit-identical to the grid's.
+//!
+//! kiddo's `add` fails when a leaf cannot split (it picks the split axis by
+//! level, so more than a bucket of points sharing x and y is enough). Such
+//! points go to an overflow list that every search scans.
+
+use std::num::NonZeroUsize;
+
+use kiddo::{MutableKdTree, SquaredEuclidean};
+
+use super::{offer_suffix, Found, NeighbourIndex};
+use crate::density::sigma::{judge, Goal, KBest};
+use crate::joint::dist2;
+
+pub struct KdTree<const D: usize> {
+    tree: MutableKdTree<f32, D>,
+    overflow: Vec<u32>,
+    arena: Vec<[f32; D]>,
+}
+
+impl<const D: usize> Default for KdTree<D> {
+    fn default() -> Self {
+        KdTree {
+            tree: MutableKdTree::default(),
+            overflow: Vec::new(),
+            arena: Vec::new(),
+        }
+    }
+}
+
+impl<const D: usize> KdTree<D> {
+    /// Points the tree refused and the searches scan linearly.
+    pub fn overflow_len(&self) -> usize {
+        self.overflow.len()
+    }
+}
+
+impl<const D: usize> NeighbourIndex<D> for KdTree<D> {
+    fn insert(&mut self, p: [f32; D]) -> u32 {
+        let id = u32::try_from(self.arena.len()).expect("more than 2^32 stored samples");
+        if self.tree.add(&p, id).is_err() {
+            self.overflow.push(id);
+        }
+        self.arena.push(p);
+        id
+    }
+
+    fn len(&self) -> usize {
+        self.arena.len()
+    }
+
+    fn point(&self, id: u32) -> &[f32; D] {
+        &self.arena[id as usize]
+    }
+
+    fn search(&self, q: &[f32; D], exclude: Option<u32>, goal: Goal, kb: &mut KBest) -> Found {
+        kb.clear();
+        let in_tree = self.arena.len() - self.overflow.len();
+        if in_tree > 0 {
+            let want = (kb.k() + exclude.is_some() as usize).min(in_tree);
+            let n = NonZeroUsize::new(want).expect("want ≥ 1");
+            let hits = self
+                .tree
+                .query(q)
+                .nearest_n::<SquaredEuclidean<f64>>(n)
+                .execute();
+            for h in hits {
+                if Some(h.item) != exclude {
+                    kb.push(dist2(&self.arena[h.item as usize], q).sqrt());
+                }
+            }
+        }
+        for &id in &self.overflow {
+            if Some(id) != exclude {
+                kb.push(dist2(&self.arena[id as usize], q).sqrt());
+            }
+        }
+        let verdict = judge(kb, f64::INFINITY, goal).expect("a complete search always decides");
+        Found {
+            verdict,
+            bound: f64::INFINITY,
+            reach: 0,
+        }
+    }
+
+    fn recheck(
+        &self,
+        q: &[f32; D],
+        first_new: u32,
+        prev: Found,
+        goal: Goal,
+        kb: &mut KBest,
+    ) -> Found {
+        // The previous search was complete, so only the new points can matter.
+        let new = self.arena.len() - first_new as usize;
+        if new <= 4096 {
+            offer_suffix(&self.arena, first_new, q, kb);
+            let verdict = judge(kb, prev.bound, goal).expect("a complete search always decides");
+            Found { verdict, ..prev }
+        } else {
+            self.search(q, None, goal, kb)
+        }
+    }
+}

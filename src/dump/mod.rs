@@ -1,0 +1,51 @@
+//! The sample dump, format version 1 (`.pds`, SPEC §1).
+//!
+//! A dump is a small bincode header followed by a flat array of 24-byte
+//! records. [`DumpReader`] maps the file and hands out the records as a
+//! zero-copy slice; [`DumpWriter`] streams records into a temporary file and
+//! renames it into place when complete.
+
+mod header;
+mod reader;
+mod record;
+mod writer;
+
+pub use header::{Header, Order, HEADER_LEN_MAX, MAGIC, VERSION};
+pub use reader::DumpReader;
+pub use record::{Record, Validity, InvalidCounts};
+pub use writer::{DumpWriter, PresizedDump};
+
+/// Byte offset of the first record for a header of `header_len` bytes:
+/// `16 + header_len` rounded up to a multiple of 64 (SPEC §1).
+pub fn data_offset(header_len: usize) -> usize {
+    (16 + header_len).div_ceil(64) * 64
+}
+
+/// Everything that can be wrong with a dump file. Every message names the
+/// file, so the CLI can print it as one line.
+#[derive(Debug, thiserror::Error)]
+pub enum DumpError {
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: {problem}")]
+    Format { path: String, problem: String },
+}
+
+impl DumpError {
+    pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
+        DumpError::Io {
+            path: path.display().to_string(),
+            source,
+        }
+    }
+    pub(crate) fn format(path: &std::path::Path, problem: impl Into<String>) -> Self {
+        DumpError::Format {
+            path: path.display().to_string(),
+            problem: problem.into(),
+        }
+    }
+}

@@ -1,0 +1,121 @@
+use std::fs::File;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use memmap2::Mmap;
+
+use super::{data_offset, DumpError, Header, Record, HEADER_LEN_MAX, MAGIC, VERSION};
+
+#[cfg(not(target_endian = "little"))]
+compile_error!("the zero-copy dump reader assumes a little-endian host");
+
+/// A validated dump, memory-mapped. The records are never copied: the
+/// operating system pages them in as they are read, so dumps larger than
+/// memory can be scanned.
+pub struct DumpReader {
+    path: PathBuf,
+    header: Header,
+    header_len: usize,
+    map: Option<Mmap>,
+}
+
+impl DumpReader {
+    /// Opens and validates `path` strictly (SPEC §1): magic, version, header
+    /// length, exact header decoding, zero padding, and a file size equal to
+    /// `data_offset + 24 × sample_count`.
+    pub fn open(path: impl AsRef<Path>) -> Result<DumpReader, DumpError> {
+        let path = path.as_ref();
+        let err = |p: String| DumpError::format(path, p);
+        let mut file = File::open(path).map_err(|e| DumpError::io(path, e))?;
+        let meta = file.metadata().map_err(|e| DumpError::io(path, e))?;
+        if !meta.is_file() {
+            return Err(err("not a regular file".into()));
+        }
+        let size = meta.len();
+        let mut fixed = [0u8; 16];
+        read_prefix(&mut file, &mut fixed)
+            .map_err(|_| err(format!("file is {size} bytes, too short for a dump prefix")))?;
+        if &fixed[0..8] != MAGIC {
+            return Err(err("not a pathdensity dump (magic is not PDSDUMP1)".into()));
+        }
+        let version = u32::from_le_bytes(fixed[8..12].try_into().unwrap());
+        if version != VERSION {
+            return Err(err(format!("unsupported dump version {version} (expected {VERSION})")));
+        }
+        let header_len = u32::from_le_bytes(fixed[12..16].try_into().unwrap()) as usize;
+        if header_len > HEADER_LEN_MAX {
+            return Err(err(format!(
+                "header_len {header_len} exceeds the limit of {HEADER_LEN_MAX}"
+            )));
+        }
+        let offset = data_offset(header_len);
+        if size < offset as u64 {
+            return Err(err(format!(
+                "file is {size} bytes, shorter than its header and padding ({offset} bytes)"
+            )));
+        }
+        let mut head = vec![0u8; offset - 16];
+        file.read_exact(&mut head).map_err(|e| DumpError::io(path, e))?;
+        let header = Header::decode(&head[..header_len]).map_err(err)?;
+        if head[header_len..].iter().any(|&b| b != 0) {
+            return Err(err("non-zero padding between header and records".into()));
+        }
+        let expected = header
+            .sample_count
+            .checked_mul(24)
+            .and_then(|b| b.checked_add(offset as u64))
+            .ok_or_else(|| err("sample_count overflows the file size".into()))?;
+        if size != expected {
+            return Err(err(format!(
+                "file size is {size} bytes but {} samples need {expected} bytes",
+                header.sample_count
+            )));
+        }
+        let map = if header.sample_count > 0 {
+            // SAFETY: the file is opened read-only; a concurrent truncation by
+            // another process is outside what any mmap reader can defend against.
+            Some(unsafe { Mmap::map(&file) }.map_err(|e| DumpError::io(path, e))?)
+        } else {
+            None
+        };
+        if let Some(m) = &map {
+            if m.len() as u64 != expected {
+                return Err(err(format!(
+                    "file changed size while being opened ({} bytes mapped, {expected} expected)",
+                    m.len()
+                )));
+            }
+        }
+        Ok(DumpReader {
+            path: path.to_path_buf(),
+            header,
+            header_len,
+            map,
+        })
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    /// Encoded header length in bytes.
+    pub fn header_len(&self) -> usize {
+        self.header_len
+    }
+
+    /// Every record, in file order, without copying.
+    pub fn records(&self) -> &[Record] {
+        match &self.map {
+            Some(m) => bytemuck::cast_slice(&m[data_offset(self.header_len)..]),
+            None => &[],
+        }
+    }
+}
+
+fn read_prefix(file: &mut File, buf: &mut [u8; 16]) -> std::io::Result<()> {
+    file.read_exact(buf)
+}

@@ -1,0 +1,86 @@
+//! EXR images: written as 32-bit float RGB, clamped to the finite range,
+//! under a temporary name and renamed when complete.
+
+use std::path::Path;
+
+use anyhow::{Context, Result, bail};
+use exr::prelude::*;
+
+use super::atomic::AtomicFile;
+use crate::recon::Image;
+
+fn finite_f32(v: f64) -> f32 {
+    (v as f32).clamp(-f32::MAX, f32::MAX)
+}
+
+/// Writes frame `frame` of `img` to `path`.
+pub fn write_frame(path: &Path, img: &Image, frame: usize) -> Result<()> {
+    let px = img.frame(frame);
+    let w = img.width;
+    let f = AtomicFile::new(path);
+    write_rgb_file(f.tmp_path(), img.width, img.height, |x, y| {
+        let p = px[y * w + x];
+        (finite_f32(p[0]), finite_f32(p[1]), finite_f32(p[2]))
+    })
+    .with_context(|| format!("{}: cannot write EXR", path.display()))?;
+    f.commit()
+        .with_context(|| format!("{}: cannot rename into place", path.display()))
+}
+
+/// Writes `NAME.exr` for a still, `NAME_0000.exr`, … for an animation.
+pub fn write_image(dir: &Path, name: &str, img: &Image) -> Result<Vec<String>> {
+    let mut names = Vec::new();
+    for f in 0..img.frames {
+        let file = frame_file_name(name, f, img.frames);
+        write_frame(&dir.join(&file), img, f)?;
+        names.push(file);
+    }
+    Ok(names)
+}
+
+/// `NAME.exr` for a still, `NAME_0007.exr` for frame 7 of an animation.
+pub fn frame_file_name(name: &str, frame: usize, frames: usize) -> String {
+    if frames > 1 {
+        format!("{name}_{frame:04}.exr")
+    } else {
+        format!("{name}.exr")
+    }
+}
+
+/// Reads the RGB channels of an EXR (alpha, if any, is ignored).
+pub fn read_rgb(path: &Path) -> Result<(usize, usize, Vec<[f64; 3]>)> {
+    let img = read_first_rgba_layer_from_file(
+        path,
+        |res, _| (res.width(), vec![[0.0f64; 3]; res.width() * res.height()]),
+        |(w, px): &mut (usize, Vec<[f64; 3]>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            px[pos.y() * *w + pos.x()] = [r as f64, g as f64, b as f64];
+        },
+    )
+    .with_context(|| format!("{}: cannot read EXR", path.display()))?;
+    let size = img.layer_data.size;
+    Ok((size.width(), size.height(), img.layer_data.channel_data.pixels.1))
+}
+
+/// Reads a reference for an image of `frames` frames: `REF.exr` for a
+/// still, `REF_0000.exr`, … beside it for an animation.
+pub fn read_reference(path: &Path, width: usize, height: usize, frames: usize) -> Result<Image> {
+    let mut img = Image::new(width, height, frames);
+    for f in 0..frames {
+        let p = if frames > 1 {
+            let stem = path.with_extension("");
+            let name = stem.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+            path.with_file_name(frame_file_name(&name, f, frames))
+        } else {
+            path.to_path_buf()
+        };
+        let (w, h, px) = read_rgb(&p)?;
+        if (w, h) != (width, height) {
+            bail!("{}: reference is {w} × {h}, the dump's film is {width} × {height}", p.display());
+        }
+        if px.iter().flatten().any(|v| !v.is_finite()) {
+            bail!("{}: reference holds non-finite values", p.display());
+        }
+        img.data[f * width * height..(f + 1) * width * height].copy_from_slice(&px);
+    }
+    Ok(img)
+}

@@ -1,0 +1,84 @@
+//! The joint image–colour(–time) space of SPEC §2, where the density filter
+//! measures distances.
+
+pub mod lab;
+
+use crate::dump::Record;
+
+/// Scales of the joint space. A point is
+/// `(x/σ_image, y/σ_image, [t/σ_time], L*/σ_color, a*/σ_color, b*/σ_color)`.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct JointSpace {
+    pub sigma_image: f64,
+    pub sigma_color: f64,
+    pub sigma_time: f64,
+    /// Luminance of white, Y_w: radiance `white` maps to L* ≈ 100.
+    pub white: f64,
+}
+
+impl Default for JointSpace {
+    /// The paper's defaults: σ_image = 3 px, σ_color = 100, σ_time = 2 frames.
+    fn default() -> Self {
+        JointSpace {
+            sigma_image: 3.0,
+            sigma_color: 100.0,
+            sigma_time: 2.0,
+            white: 1.0,
+        }
+    }
+}
+
+/// Rounds an f64 coordinate to f32, clamped to the finite range (SPEC §2).
+#[inline]
+fn coord(v: f64) -> f32 {
+    (v as f32).clamp(-f32::MAX, f32::MAX)
+}
+
+impl JointSpace {
+    /// Checks the scales are positive and finite.
+    pub fn validate(&self) -> Result<(), String> {
+        for (name, v) in [
+            ("sigma-image", self.sigma_image),
+            ("sigma-color", self.sigma_color),
+            ("sigma-time", self.sigma_time),
+            ("white", self.white),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("--{name} must be a positive finite number, got {v}"));
+            }
+        }
+        Ok(())
+    }
+
+    /// The joint point of a valid record. `D` is 5 for a still (no time
+    /// axis) and 6 for an animation.
+    #[inline]
+    pub fn point<const D: usize>(&self, r: &Record) -> [f32; D] {
+        debug_assert!(D == 5 || D == 6);
+        let lab = lab::rgb_to_lab([r.r as f64, r.g as f64, r.b as f64], self.white);
+        let mut p = [0f32; D];
+        p[0] = coord(r.x as f64 / self.sigma_image);
+        p[1] = coord(r.y as f64 / self.sigma_image);
+        let c = D - 3;
+        if D == 6 {
+            p[2] = coord(r.t as f64 / self.sigma_time);
+        }
+        for i in 0..3 {
+            p[c + i] = coord(lab[i] / self.sigma_color);
+        }
+        p
+    }
+}
+
+/// The canonical joint distance: computed in f64 from the f32 coordinates,
+/// squared differences added in coordinate order (SPEC §2). Returns the
+/// squared distance; `sqrt` of it is the distance.
+#[inline(always)]
+pub fn dist2<const D: usize>(p: &[f32; D], q: &[f32; D]) -> f64 {
+    let mut s = 0.0f64;
+    for j in 0..D {
+        let d = p[j] as f64 - q[j] as f64;
+        s += d * d;
+    }
+    s
+}

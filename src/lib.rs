@@ -1,0 +1,16 @@
+//! pathdensity: density-based outlier rejection for Monte Carlo sample dumps
+//! (DeCoro, Weyrich & Rusinkiewicz, Pacific Graphics 2010).
+//!
+//! The modules follow the pipeline: [`dump`] (the `.pds` format) →
+//! [`joint`] (the joint image–colour–time space) → [`density`] (the
+//! filter) → [`recon`] (images) → [`metrics`] → [`report`].
+
+pub mod commands;
+pub mod density;
+pub mod dump;
+pub mod io;
+pub mod joint;
+pub mod metrics;
+pub mod recon;
+pub mod report;
+pub mod synth;

@@ -1,0 +1,223 @@
+//! Reconstruction (SPEC §4): per-pixel weighted means `Σ w c / Σ w` under a
+//! reconstruction filter W, accumulated in f64 in file order so that the
+//! result does not depend on the thread count.
+
+pub mod median;
+
+use crate::dump::{Header, Record, Validity};
+
+/// The reconstruction filter W (the paper's sensor response).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[serde(rename_all = "kebab-case", tag = "kind")]
+pub enum ReconFilter {
+    /// A sample counts for the pixel that contains it, weight 1.
+    Box,
+    /// Weight exp(−d²/(2 s²)) for pixel centres within distance ≤ `radius`.
+    Gaussian { s: f64, radius: f64 },
+}
+
+impl ReconFilter {
+    pub fn gaussian() -> ReconFilter {
+        ReconFilter::Gaussian { s: 0.5, radius: 1.5 }
+    }
+}
+
+/// An RGB image per frame, in f64: `data[(frame · height + row) · width + col]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub width: usize,
+    pub height: usize,
+    pub frames: usize,
+    pub data: Vec<[f64; 3]>,
+}
+
+impl Image {
+    pub fn new(width: usize, height: usize, frames: usize) -> Image {
+        Image {
+            width,
+            height,
+            frames,
+            data: vec![[0.0; 3]; width * height * frames],
+        }
+    }
+
+    pub fn for_header(h: &Header) -> Image {
+        Image::new(h.width as usize, h.height as usize, h.frames as usize)
+    }
+
+    pub fn pixels_per_frame(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// The pixels of one frame.
+    pub fn frame(&self, f: usize) -> &[[f64; 3]] {
+        let n = self.pixels_per_frame();
+        &self.data[f * n..(f + 1) * n]
+    }
+}
+
+/// A film accumulating weighted sums: RGB and the weight, per pixel.
+pub struct Film {
+    width: usize,
+    height: usize,
+    filter: ReconFilter,
+    sum: Vec<[f64; 4]>,
+}
+
+impl Film {
+    pub fn new(h: &Header, filter: ReconFilter) -> Film {
+        Film {
+            width: h.width as usize,
+            height: h.height as usize,
+            filter,
+            sum: vec![[0.0; 4]; h.pixels() * h.frames as usize],
+        }
+    }
+
+    /// Splats a valid record.
+    #[inline]
+    pub fn splat(&mut self, r: &Record) {
+        let c = [r.r as f64, r.g as f64, r.b as f64];
+        let frame_base = r.t as usize * self.width * self.height;
+        match self.filter {
+            ReconFilter::Box => {
+                let px = frame_base + r.y as usize * self.width + r.x as usize;
+                add(&mut self.sum[px], c, 1.0);
+            }
+            ReconFilter::Gaussian { s, radius } => {
+                let (x, y) = (r.x as f64, r.y as f64);
+                // Pixel centres i + 0.5 within radius of x.
+                let span = |v: f64, n: usize| {
+                    let lo = (v - radius - 0.5).ceil().max(0.0) as usize;
+                    let hi = (v + radius - 0.5).floor().min(n as f64 - 1.0);
+                    (lo, hi)
+                };
+                let (i0, i1) = span(x, self.width);
+                let (j0, j1) = span(y, self.height);
+                if i1 < 0.0 || j1 < 0.0 {
+                    return;
+                }
+                for j in j0..=j1 as usize {
+                    let dy = j as f64 + 0.5 - y;
+                    for i in i0..=i1 as usize {
+                        let dx = i as f64 + 0.5 - x;
+                        let d2 = dx * dx + dy * dy;
+                        if d2 <= radius * radius {
+                            let w = (-d2 / (2.0 * s * s)).exp();
+                            add(&mut self.sum[frame_base + j * self.width + i], c, w);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Σ w of one pixel.
+    pub fn weight(&self, px: usize) -> f64 {
+        self.sum[px][3]
+    }
+
+    /// The weighted mean of every pixel; pixels with no valid sample of
+    /// their own (`occupancy` 0) are 0, as SPEC §4 requires.
+    pub fn resolve(&self, occupancy: &[u32]) -> Image {
+        let frames = self.sum.len() / (self.width * self.height).max(1);
+        let mut img = Image::new(self.width, self.height, frames);
+        for ((out, s), &n) in img.data.iter_mut().zip(&self.sum).zip(occupancy) {
+            if n > 0 && s[3] > 0.0 {
+                *out = [s[0] / s[3], s[1] / s[3], s[2] / s[3]];
+            }
+        }
+        img
+    }
+}
+
+#[inline]
+fn add(acc: &mut [f64; 4], c: [f64; 3], w: f64) {
+    acc[0] += w * c[0];
+    acc[1] += w * c[1];
+    acc[2] += w * c[2];
+    acc[3] += w;
+}
+
+/// Number of valid samples each pixel contains (the box bin of the sample).
+pub fn occupancy(records: &[Record], h: &Header) -> Vec<u32> {
+    let mut n = vec![0u32; h.pixels() * h.frames as usize];
+    for r in records {
+        if r.validity(h) == Validity::Valid {
+            n[r.pixel_index(h)] += 1;
+        }
+    }
+    n
+}
+
+/// The mean and filtered images of SPEC §4, in one pass over the dump.
+pub struct Reconstruction {
+    pub mean: Image,
+    pub filtered: Image,
+    pub occupancy: Vec<u32>,
+    /// Pixels with valid samples but no accepted weight, which fell back to
+    /// their median.
+    pub fallback_pixels: u64,
+    /// Pixels that contain no valid sample.
+    pub empty_pixels: u64,
+}
+
+/// Reconstructs the mean of all valid samples and the filtered image of the
+/// accepted ones (`accepted(i)` for record i), with the median fallback.
+pub fn reconstruct(
+    records: &[Record],
+    h: &Header,
+    filter: ReconFilter,
+    accepted: impl Fn(usize) -> bool,
+) -> Reconstruction {
+    let mut mean = Film::new(h, filter);
+    let mut filt = Film::new(h, filter);
+    let mut occ = vec![0u32; h.pixels() * h.frames as usize];
+    for (i, r) in records.iter().enumerate() {
+        if r.validity(h) != Validity::Valid {
+            continue;
+        }
+        occ[r.pixel_index(h)] += 1;
+        mean.splat(r);
+        if accepted(i) {
+            filt.splat(r);
+        }
+    }
+    let mean_img = mean.resolve(&occ);
+    let mut filtered = filt.resolve(&occ);
+    let fallback: Vec<usize> = (0..occ.len())
+        .filter(|&px| occ[px] > 0 && filt.weight(px) == 0.0)
+        .collect();
+    let medians = median::pixel_medians(records, h, &fallback);
+    for (&px, m) in fallback.iter().zip(medians) {
+        filtered.data[px] = m;
+    }
+    Reconstruction {
+        mean: mean_img,
+        filtered,
+        empty_pixels: occ.iter().filter(|&&n| n == 0).count() as u64,
+        fallback_pixels: fallback.len() as u64,
+        occupancy: occ,
+    }
+}
+
+/// The σ map (the paper's Figure 6): per pixel, the mean of the finite σ of
+/// the valid samples it contains, summed in file order; 0 where none is finite.
+pub fn sigma_map(records: &[Record], h: &Header, sigma: &[f64]) -> Image {
+    let mut sum = vec![(0.0f64, 0u32); h.pixels() * h.frames as usize];
+    for (r, &s) in records.iter().zip(sigma) {
+        if s.is_finite() && r.validity(h) == Validity::Valid {
+            let e = &mut sum[r.pixel_index(h)];
+            e.0 += s;
+            e.1 += 1;
+        }
+    }
+    let mut img = Image::for_header(h);
+    for (out, (s, n)) in img.data.iter_mut().zip(sum) {
+        if n > 0 {
+            let m = s / n as f64;
+            *out = [m, m, m];
+        }
+    }
+    img
+}
