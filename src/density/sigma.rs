@@ -4,11 +4,18 @@
 
 /// The k smallest distances seen so far, kept sorted ascending.
 ///
-/// Invariant: `len() ≤ k` and `d` is sorted ascending.
+/// Candidates arrive as squared distances and are screened against the
+/// square of the current k-th distance (with a margin that can only let
+/// extra candidates through), so most never pay a square root.
+///
+/// Invariant: `len ≤ k` and `d[..len]` is sorted ascending.
 #[derive(Clone, Debug)]
 pub struct KBest {
     k: usize,
+    len: usize,
     d: Vec<f64>,
+    /// Squared distances above this cannot enter.
+    screen2: f64,
 }
 
 impl KBest {
@@ -16,7 +23,9 @@ impl KBest {
         assert!(k >= 1, "k must be at least 1");
         KBest {
             k,
-            d: Vec::with_capacity(k + 1),
+            len: 0,
+            d: vec![0.0; k],
+            screen2: f64::INFINITY,
         }
     }
 
@@ -25,37 +34,61 @@ impl KBest {
     }
 
     pub fn clear(&mut self) {
-        self.d.clear();
+        self.len = 0;
+        self.screen2 = f64::INFINITY;
     }
 
-    /// Replaces the contents with `sorted` (ascending, at most k values).
+    /// Replaces the contents with `sorted` distances (ascending, ≤ k values).
     pub fn load(&mut self, sorted: &[f64]) {
-        self.d.clear();
-        self.d.extend_from_slice(sorted);
+        self.len = sorted.len();
+        self.d[..self.len].copy_from_slice(sorted);
+        self.update_screen();
     }
 
+    /// The distances, ascending.
     pub fn as_slice(&self) -> &[f64] {
-        &self.d
+        &self.d[..self.len]
     }
 
     pub fn is_full(&self) -> bool {
-        self.d.len() == self.k
+        self.len == self.k
     }
 
-    /// Offers one distance.
+    fn update_screen(&mut self) {
+        self.screen2 = if self.is_full() {
+            // sqrt is correctly rounded, so a square above w² (1 + 2^-40)
+            // has a root ≥ w and could not enter anyway.
+            let w = self.d[self.k - 1];
+            w * w * (1.0 + f64::EPSILON * 4096.0)
+        } else {
+            f64::INFINITY
+        };
+    }
+
+    /// Offers one squared distance (from [`crate::joint::dist2`]).
     #[inline]
-    pub fn push(&mut self, dist: f64) {
-        if self.d.len() == self.k {
-            if dist >= self.d[self.k - 1] {
+    pub fn push(&mut self, dist2: f64) {
+        if dist2 > self.screen2 {
+            return;
+        }
+        let dist = dist2.sqrt();
+        let mut i = self.len;
+        if i == self.k {
+            if dist >= self.d[i - 1] {
                 return;
             }
-            self.d.pop();
+            i -= 1;
+        } else {
+            self.len += 1;
         }
-        let mut i = self.d.len();
         while i > 0 && self.d[i - 1] > dist {
+            self.d[i] = self.d[i - 1];
             i -= 1;
         }
-        self.d.insert(i, dist);
+        self.d[i] = dist;
+        if self.len == self.k {
+            self.update_screen();
+        }
     }
 
     /// The k-th smallest distance so far, +∞ while fewer than k are known.
@@ -171,7 +204,7 @@ mod tests {
     #[test]
     fn kbest_keeps_the_k_smallest_sorted() {
         let mut kb = KBest::new(3);
-        for d in [5.0, 1.0, 4.0, 0.0, 3.0, 0.0] {
+        for d in [25.0, 1.0, 16.0, 0.0, 9.0, 0.0] {
             kb.push(d);
         }
         assert_eq!(kb.as_slice(), &[0.0, 0.0, 1.0]);

@@ -70,13 +70,13 @@ impl<const D: usize> NeighbourIndex<D> for KdTree<D> {
                 .execute();
             for h in hits {
                 if Some(h.item) != exclude {
-                    kb.push(dist2(&self.arena[h.item as usize], q).sqrt());
+                    kb.push(dist2(&self.arena[h.item as usize], q));
                 }
             }
         }
         for &id in &self.overflow {
             if Some(id) != exclude {
-                kb.push(dist2(&self.arena[id as usize], q).sqrt());
+                kb.push(dist2(&self.arena[id as usize], q));
             }
         }
         let verdict = judge(kb, f64::INFINITY, goal).expect("a complete search always decides");

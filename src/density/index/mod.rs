@@ -68,6 +68,6 @@ pub(crate) fn offer_suffix<const D: usize>(
     kb: &mut KBest,
 ) {
     for p in &arena[first_new as usize..] {
-        kb.push(crate::joint::dist2(p, q).sqrt());
+        kb.push(crate::joint::dist2(p, q));
     }
 }
