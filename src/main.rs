@@ -13,7 +13,11 @@ use pathdensity::recon::ReconFilter;
 use pathdensity::synth::SynthParams;
 
 #[derive(Parser)]
-#[command(name = "pathdensity", version, about = "Density-based outlier rejection for Monte Carlo sample dumps")]
+#[command(
+    name = "pathdensity",
+    version,
+    about = "Density-based outlier rejection for Monte Carlo sample dumps"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

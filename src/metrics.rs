@@ -1,7 +1,7 @@
 //! Error metrics against a reference image (SPEC §5).
 
 use crate::joint::lab::luminance;
-use crate::recon::Image;
+use crate::recon::{Image, stored};
 
 /// All metrics of one image against a reference, over a set of pixels.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -30,12 +30,15 @@ pub fn display(v: f64, exposure: f64) -> f64 {
     srgb_encode((v * exposure).clamp(0.0, 1.0))
 }
 
-/// Metrics of pixels `img` against `reference` (same length).
+/// Metrics of pixels `img` against `reference` (same length). The image is
+/// measured as it is written (f32), so a reference read back from an image
+/// this tool wrote compares exactly.
 pub fn compare_pixels(img: &[[f64; 3]], reference: &[[f64; 3]], exposure: f64) -> Metrics {
     assert_eq!(img.len(), reference.len());
     let (mut se, mut sed, mut rel) = (0.0f64, 0.0f64, 0.0f64);
     let (mut yi, mut yr) = (0.0f64, 0.0f64);
     for (a, b) in img.iter().zip(reference) {
+        let a = &a.map(|v| stored(v) as f64);
         for c in 0..3 {
             let d = a[c] - b[c];
             se += d * d;

@@ -65,7 +65,8 @@ impl SynthParams {
 
     /// Sample `s` of pixel `(i, j)` in frame `f`.
     pub fn sample(&self, f: u32, i: u32, j: u32, s: u32) -> Record {
-        let key = ((self.seed * 0x1_0000 + f as u64) << 40) ^ ((j as u64) << 26) ^ ((i as u64) << 12);
+        let key =
+            ((self.seed * 0x1_0000 + f as u64) << 40) ^ ((j as u64) << 26) ^ ((i as u64) << 12);
         let mut h = mix(key ^ mix(s as u64));
         let mut next = || {
             h = mix(h);
@@ -77,7 +78,11 @@ impl SynthParams {
         } else {
             (i as f32 + jx.min(0.999_999), j as f32 + jy.min(0.999_999))
         };
-        let t = if self.frames > 1 { f as f32 + jt.min(0.999_99) } else { 0.0 };
+        let t = if self.frames > 1 {
+            f as f32 + jt.min(0.999_99)
+        } else {
+            0.0
+        };
         let (u, v) = (x / self.width as f32, y / self.height as f32);
         let tau = std::f32::consts::TAU;
         let base = [
@@ -87,10 +92,11 @@ impl SynthParams {
         ];
         let noise = 1.0 + 0.2 * (next() - 0.5);
         let mut rgb = base.map(|c| c * noise);
-        if let Some((x0, y0, side, radiance)) = self.light {
-            if (x0..x0 + side).contains(&i) && (y0..y0 + side).contains(&j) {
-                rgb = [radiance * noise, radiance * noise, radiance * 0.8 * noise];
-            }
+        if let Some((x0, y0, side, radiance)) = self.light
+            && (x0..x0 + side).contains(&i)
+            && (y0..y0 + side).contains(&j)
+        {
+            rgb = [radiance * noise, radiance * noise, radiance * 0.8 * noise];
         }
         if (next() as f64) < self.firefly_fraction {
             let gain = self.firefly_gain * (0.5 + next());
@@ -109,7 +115,12 @@ impl SynthParams {
                     Order::PassMajor => (n % (w as u64 * h as u64), n / (w as u64 * h as u64)),
                     _ => (n / spp as u64, n % spp as u64),
                 };
-                self.sample(f, (pixel % w as u64) as u32, (pixel / w as u64) as u32, s as u32)
+                self.sample(
+                    f,
+                    (pixel % w as u64) as u32,
+                    (pixel / w as u64) as u32,
+                    s as u32,
+                )
             })
         })
     }

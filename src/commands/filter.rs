@@ -64,10 +64,10 @@ pub fn filter(opts: &FilterOptions) -> Result<FilterReport> {
         bail!("--k must be at least 1");
     }
     params.space.validate().map_err(anyhow::Error::msg)?;
-    if let ReconFilter::Gaussian { s, radius } = opts.recon {
-        if !(s > 0.0 && s.is_finite() && radius >= 0.0 && radius.is_finite()) {
-            bail!("the gaussian filter needs s > 0 and a finite radius ≥ 0");
-        }
+    if let ReconFilter::Gaussian { s, radius } = opts.recon
+        && !(s > 0.0 && s.is_finite() && radius >= 0.0 && radius.is_finite())
+    {
+        bail!("the gaussian filter needs s > 0 and a finite radius ≥ 0");
     }
     let dump = DumpReader::open(&opts.dump)?;
     let h = dump.header().clone();
@@ -92,7 +92,10 @@ pub fn filter(opts: &FilterOptions) -> Result<FilterReport> {
     let rec = recon::reconstruct(records, &h, opts.recon, |i| {
         Decision::accepted(result.decisions[i])
     });
-    let sigma_img = result.sigma.as_ref().map(|s| recon::sigma_map(records, &h, s));
+    let sigma_img = result
+        .sigma
+        .as_ref()
+        .map(|s| recon::sigma_map(records, &h, s));
     let mut metrics_by_image = BTreeMap::new();
     if let Some(r) = &reference {
         metrics_by_image.insert("mean".into(), metrics::compare(&rec.mean, r, opts.exposure));

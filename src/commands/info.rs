@@ -38,11 +38,19 @@ pub struct Info {
 /// Maps an f32 to a u32 whose unsigned order is the float order.
 fn key(v: f32) -> u32 {
     let b = v.to_bits();
-    if b & 0x8000_0000 != 0 { !b } else { b | 0x8000_0000 }
+    if b & 0x8000_0000 != 0 {
+        !b
+    } else {
+        b | 0x8000_0000
+    }
 }
 
 fn from_key(k: u32) -> f32 {
-    f32::from_bits(if k & 0x8000_0000 != 0 { k & 0x7fff_ffff } else { !k })
+    f32::from_bits(if k & 0x8000_0000 != 0 {
+        k & 0x7fff_ffff
+    } else {
+        !k
+    })
 }
 
 /// Nearest-rank index (0-based) of quantile q among n values.
@@ -51,7 +59,8 @@ fn rank(q: f64, n: u64) -> u64 {
 }
 
 fn valid_records<'a>(recs: &'a [Record], h: &'a Header) -> impl Iterator<Item = &'a Record> + 'a {
-    recs.iter().filter(move |r| r.validity(h) == Validity::Valid)
+    recs.iter()
+        .filter(move |r| r.validity(h) == Validity::Valid)
 }
 
 pub fn info(path: &Path) -> Result<Info> {
@@ -89,8 +98,9 @@ pub fn info(path: &Path) -> Result<Info> {
             }
             unreachable!("rank below the count")
         };
-        let targets: Vec<Vec<(u32, u64)>> =
-            (0..3).map(|c| ranks.iter().map(|&rk| locate(c, rk)).collect()).collect();
+        let targets: Vec<Vec<(u32, u64)>> = (0..3)
+            .map(|c| ranks.iter().map(|&rk| locate(c, rk)).collect())
+            .collect();
         let mut lo = vec![vec![vec![0u64; 1 << 16]; ranks.len()]; 3];
         for r in valid_records(recs, &h) {
             for (c, v) in r.rgb().into_iter().enumerate() {
@@ -135,11 +145,26 @@ pub fn render(i: &Info) -> String {
     let h = &i.header;
     let mut s = format!(
         "{}\n  film        {} × {} px, {} frame(s), {} spp, order {:?}\n  scene       {:?} (seed {}, producer {:?})\n  records     {} ({} valid; invalid: {} non-finite, {} outside film, {} outside time)\n",
-        i.path, h.width, h.height, h.frames, h.spp, h.order, h.scene, h.seed, h.producer,
-        h.sample_count, i.valid, i.invalid.non_finite, i.invalid.outside_film, i.invalid.outside_time
+        i.path,
+        h.width,
+        h.height,
+        h.frames,
+        h.spp,
+        h.order,
+        h.scene,
+        h.seed,
+        h.producer,
+        h.sample_count,
+        i.valid,
+        i.invalid.non_finite,
+        i.invalid.outside_film,
+        i.invalid.outside_time
     );
     if let Some(ch) = &i.channels {
-        s += &format!("  {:<8}{:>13}{:>13}{:>13}{:>13}{:>13}\n", "channel", "min", "p50", "p99", "p99.9", "max");
+        s += &format!(
+            "  {:<8}{:>13}{:>13}{:>13}{:>13}{:>13}\n",
+            "channel", "min", "p50", "p99", "p99.9", "max"
+        );
         for (name, c) in ["r", "g", "b"].iter().zip(ch) {
             s += &format!(
                 "  {:<8}{:>13.6e}{:>13.6e}{:>13.6e}{:>13.6e}{:>13.6e}\n",

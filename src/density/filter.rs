@@ -97,10 +97,18 @@ pub fn run(
         header.frames as f64 / s.sigma_time,
     ];
     match (header.animated(), params.index) {
-        (false, IndexKind::Grid) => replay::<5, _>(records, header, params, Grid::new(extent), progress),
-        (true, IndexKind::Grid) => replay::<6, _>(records, header, params, Grid::new(extent), progress),
-        (false, IndexKind::Kdtree) => replay::<5, _>(records, header, params, KdTree::default(), progress),
-        (true, IndexKind::Kdtree) => replay::<6, _>(records, header, params, KdTree::default(), progress),
+        (false, IndexKind::Grid) => {
+            replay::<5, _>(records, header, params, Grid::new(extent), progress)
+        }
+        (true, IndexKind::Grid) => {
+            replay::<6, _>(records, header, params, Grid::new(extent), progress)
+        }
+        (false, IndexKind::Kdtree) => {
+            replay::<5, _>(records, header, params, KdTree::default(), progress)
+        }
+        (true, IndexKind::Kdtree) => {
+            replay::<6, _>(records, header, params, KdTree::default(), progress)
+        }
     }
 }
 
@@ -124,7 +132,11 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
     progress: &ProgressBar,
 ) -> FilterResult {
     let k = params.k;
-    let goal = if params.exact_sigma { Goal::Exact } else { Goal::Decide };
+    let goal = if params.exact_sigma {
+        Goal::Exact
+    } else {
+        Goal::Decide
+    };
     let n = records.len();
     let mut decisions = vec![Decision::Invalid as u8; n];
     let mut sigma = params.exact_sigma.then(|| vec![f64::NAN; n]);

@@ -10,9 +10,9 @@ mod reader;
 mod record;
 mod writer;
 
-pub use header::{Header, Order, HEADER_LEN_MAX, MAGIC, VERSION};
+pub use header::{HEADER_LEN_MAX, Header, MAGIC, Order, VERSION};
 pub use reader::DumpReader;
-pub use record::{Record, Validity, InvalidCounts};
+pub use record::{InvalidCounts, Record, Validity};
 pub use writer::{DumpWriter, PresizedDump};
 
 /// Byte offset of the first record for a header of `header_len` bytes:

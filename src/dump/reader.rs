@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use memmap2::Mmap;
 
-use super::{data_offset, DumpError, Header, Record, HEADER_LEN_MAX, MAGIC, VERSION};
+use super::{DumpError, HEADER_LEN_MAX, Header, MAGIC, Record, VERSION, data_offset};
 
 #[cfg(not(target_endian = "little"))]
 compile_error!("the zero-copy dump reader assumes a little-endian host");
@@ -40,7 +40,9 @@ impl DumpReader {
         }
         let version = u32::from_le_bytes(fixed[8..12].try_into().unwrap());
         if version != VERSION {
-            return Err(err(format!("unsupported dump version {version} (expected {VERSION})")));
+            return Err(err(format!(
+                "unsupported dump version {version} (expected {VERSION})"
+            )));
         }
         let header_len = u32::from_le_bytes(fixed[12..16].try_into().unwrap()) as usize;
         if header_len > HEADER_LEN_MAX {
@@ -55,7 +57,8 @@ impl DumpReader {
             )));
         }
         let mut head = vec![0u8; offset - 16];
-        file.read_exact(&mut head).map_err(|e| DumpError::io(path, e))?;
+        file.read_exact(&mut head)
+            .map_err(|e| DumpError::io(path, e))?;
         let header = Header::decode(&head[..header_len]).map_err(err)?;
         if head[header_len..].iter().any(|&b| b != 0) {
             return Err(err("non-zero padding between header and records".into()));
@@ -78,13 +81,13 @@ impl DumpReader {
         } else {
             None
         };
-        if let Some(m) = &map {
-            if m.len() as u64 != expected {
-                return Err(err(format!(
-                    "file changed size while being opened ({} bytes mapped, {expected} expected)",
-                    m.len()
-                )));
-            }
+        if let Some(m) = &map
+            && m.len() as u64 != expected
+        {
+            return Err(err(format!(
+                "file changed size while being opened ({} bytes mapped, {expected} expected)",
+                m.len()
+            )));
         }
         Ok(DumpReader {
             path: path.to_path_buf(),

@@ -22,7 +22,9 @@ impl DumpWriter {
         let file = AtomicFile::new(path);
         let f = file.create().map_err(|e| DumpError::io(path, e))?;
         let mut out = BufWriter::with_capacity(1 << 20, f);
-        let prefix = header.prefix_bytes().map_err(|p| DumpError::format(path, p))?;
+        let prefix = header
+            .prefix_bytes()
+            .map_err(|p| DumpError::format(path, p))?;
         out.write_all(&prefix).map_err(|e| DumpError::io(path, e))?;
         Ok(DumpWriter {
             file,
@@ -77,7 +79,9 @@ pub struct PresizedDump {
 impl PresizedDump {
     pub fn create(path: impl AsRef<Path>, header: &Header) -> Result<PresizedDump, DumpError> {
         let path = path.as_ref();
-        let prefix = header.prefix_bytes().map_err(|p| DumpError::format(path, p))?;
+        let prefix = header
+            .prefix_bytes()
+            .map_err(|p| DumpError::format(path, p))?;
         let file = AtomicFile::new(path);
         let mut f = file.create().map_err(|e| DumpError::io(path, e))?;
         let total = prefix.len() as u64 + 24 * header.sample_count;

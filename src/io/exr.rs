@@ -7,11 +7,7 @@ use anyhow::{Context, Result, bail};
 use exr::prelude::*;
 
 use super::atomic::AtomicFile;
-use crate::recon::Image;
-
-fn finite_f32(v: f64) -> f32 {
-    (v as f32).clamp(-f32::MAX, f32::MAX)
-}
+use crate::recon::{Image, stored as finite_f32};
 
 /// Writes frame `frame` of `img` to `path`.
 pub fn write_frame(path: &Path, img: &Image, frame: usize) -> Result<()> {
@@ -58,7 +54,11 @@ pub fn read_rgb(path: &Path) -> Result<(usize, usize, Vec<[f64; 3]>)> {
     )
     .with_context(|| format!("{}: cannot read EXR", path.display()))?;
     let size = img.layer_data.size;
-    Ok((size.width(), size.height(), img.layer_data.channel_data.pixels.1))
+    Ok((
+        size.width(),
+        size.height(),
+        img.layer_data.channel_data.pixels.1,
+    ))
 }
 
 /// Reads a reference for an image of `frames` frames: `REF.exr` for a
@@ -68,14 +68,20 @@ pub fn read_reference(path: &Path, width: usize, height: usize, frames: usize) -
     for f in 0..frames {
         let p = if frames > 1 {
             let stem = path.with_extension("");
-            let name = stem.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+            let name = stem
+                .file_name()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
             path.with_file_name(frame_file_name(&name, f, frames))
         } else {
             path.to_path_buf()
         };
         let (w, h, px) = read_rgb(&p)?;
         if (w, h) != (width, height) {
-            bail!("{}: reference is {w} × {h}, the dump's film is {width} × {height}", p.display());
+            bail!(
+                "{}: reference is {w} × {h}, the dump's film is {width} × {height}",
+                p.display()
+            );
         }
         if px.iter().flatten().any(|v| !v.is_finite()) {
             bail!("{}: reference holds non-finite values", p.display());

@@ -44,7 +44,9 @@ impl JointSpace {
             ("white", self.white),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!("--{name} must be a positive finite number, got {v}"));
+                return Err(format!(
+                    "--{name} must be a positive finite number, got {v}"
+                ));
             }
         }
         Ok(())

@@ -18,8 +18,17 @@ pub enum ReconFilter {
 
 impl ReconFilter {
     pub fn gaussian() -> ReconFilter {
-        ReconFilter::Gaussian { s: 0.5, radius: 1.5 }
+        ReconFilter::Gaussian {
+            s: 0.5,
+            radius: 1.5,
+        }
     }
+}
+
+/// A value as images store it: rounded to f32, clamped to the finite range.
+#[inline]
+pub fn stored(v: f64) -> f32 {
+    (v as f32).clamp(-f32::MAX, f32::MAX)
 }
 
 /// An RGB image per frame, in f64: `data[(frame · height + row) · width + col]`.

@@ -12,8 +12,8 @@
 //! along one axis; rounding is monotone, so its computed distance is at least
 //! `sqrt(g * g)` computed the same way. That is the search's `bound`.
 
-use super::{offer_suffix, Found, NeighbourIndex};
-use crate::density::sigma::{judge, sigma, Goal, KBest, Verdict};
+use super::{Found, NeighbourIndex, offer_suffix};
+use crate::density::sigma::{Goal, KBest, Verdict, judge, sigma};
 use crate::joint::dist2;
 
 /// Upper limit on the number of cells; the cell side doubles until it fits.
@@ -178,7 +178,11 @@ impl<const D: usize> Grid<D> {
                 lo - v
             } else {
                 let hi = (c[a] + 1) as f64 * self.side[a];
-                if v >= hi && c[a] + 1 < self.dims[a] { v - hi } else { 0.0 }
+                if v >= hi && c[a] + 1 < self.dims[a] {
+                    v - hi
+                } else {
+                    0.0
+                }
             };
             s += g * g;
         }
@@ -232,9 +236,8 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
         kb.clear();
         let centre = self.cell_of(q);
         // Early acceptance, checked cell by cell (exact: see `judge`).
-        let accepts = |kb: &KBest| {
-            goal == Goal::Decide && kb.is_full() && sigma(kb.as_slice(), kb.k()) < 1.0
-        };
+        let accepts =
+            |kb: &KBest| goal == Goal::Decide && kb.is_full() && sigma(kb.as_slice(), kb.k()) < 1.0;
         let accept = |r: usize| Found {
             verdict: Verdict::Accept,
             bound: 0.0,
@@ -339,4 +342,3 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
         }
     }
 }
-

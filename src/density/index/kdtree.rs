@@ -12,8 +12,8 @@ use std::num::NonZeroUsize;
 
 use kiddo::{MutableKdTree, SquaredEuclidean};
 
-use super::{offer_suffix, Found, NeighbourIndex};
-use crate::density::sigma::{judge, Goal, KBest};
+use super::{Found, NeighbourIndex, offer_suffix};
+use crate::density::sigma::{Goal, KBest, judge};
 use crate::joint::dist2;
 
 pub struct KdTree<const D: usize> {

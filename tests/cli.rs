@@ -1,0 +1,279 @@
+//! The `pathdensity` binary end to end: outputs, bit-identical results for
+//! any thread count, and bad input reported as one clear line.
+
+mod common;
+
+use std::path::Path;
+use std::process::Command;
+
+use common::*;
+use pathdensity::dump::Record;
+use pathdensity::synth::SynthParams;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_pathdensity"))
+}
+
+fn run_ok(args: &[&str]) -> String {
+    let out = bin().args(args).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{args:?} failed: {err}");
+    String::from_utf8(out.stdout).unwrap()
+}
+
+/// Runs a command expected to fail; returns its stderr.
+fn run_err(args: &[&str]) -> String {
+    let out = bin().args(args).output().unwrap();
+    assert!(!out.status.success(), "{args:?} should fail");
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+    err
+}
+
+fn files(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .map(|rd| {
+            rd.map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect()
+        })
+        .unwrap_or_default();
+    v.sort();
+    v
+}
+
+fn synth(dir: &Path, name: &str, p: &SynthParams) -> String {
+    let path = dir.join(name);
+    p.write(&path).unwrap();
+    path.to_str().unwrap().to_string()
+}
+
+#[test]
+fn filter_writes_images_decisions_and_a_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = SynthParams {
+        width: 24,
+        height: 16,
+        spp: 8,
+        ..SynthParams::default()
+    };
+    let dump = synth(dir.path(), "d.pds", &p);
+    let out = dir.path().join("out");
+    let dec = dir.path().join("dec.bin");
+    let stdout = run_ok(&[
+        "filter",
+        &dump,
+        "-o",
+        out.to_str().unwrap(),
+        "--decisions",
+        dec.to_str().unwrap(),
+        "--sigma-map",
+    ]);
+    assert!(stdout.contains("accepted streaming"));
+    assert_eq!(
+        files(&out),
+        ["filtered.exr", "mean.exr", "report.json", "sigma.exr"]
+    );
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let c = &report["counts"];
+    let n = |k: &str| c[k].as_u64().unwrap();
+    assert_eq!(n("records"), p.sample_count());
+    assert_eq!(
+        n("accepted_streaming") + n("accepted_final") + n("rejected"),
+        n("valid")
+    );
+    let decisions = std::fs::read(&dec).unwrap();
+    assert_eq!(decisions.len() as u64, p.sample_count());
+    assert_eq!(
+        decisions.iter().filter(|&&d| d == REJECTED).count() as u64,
+        n("rejected")
+    );
+    assert_eq!(
+        decisions.iter().filter(|&&d| d == FINAL).count() as u64,
+        n("accepted_final")
+    );
+}
+
+#[test]
+fn every_output_is_bit_identical_for_1_2_and_8_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = SynthParams {
+        width: 48,
+        height: 32,
+        spp: 16,
+        firefly_fraction: 0.02,
+        order: pathdensity::dump::Order::PassMajor,
+        ..SynthParams::default()
+    };
+    let dump = synth(dir.path(), "d.pds", &p);
+    let outputs: Vec<Vec<Vec<u8>>> = [1, 2, 8]
+        .iter()
+        .map(|t| {
+            let out = dir.path().join(format!("out{t}"));
+            let dec = dir.path().join(format!("dec{t}"));
+            run_ok(&[
+                "filter",
+                &dump,
+                "-o",
+                out.to_str().unwrap(),
+                "--threads",
+                &t.to_string(),
+                "--sigma-map",
+                "--decisions",
+                dec.to_str().unwrap(),
+            ]);
+            let mut v: Vec<Vec<u8>> = ["filtered.exr", "mean.exr", "sigma.exr"]
+                .iter()
+                .map(|f| std::fs::read(out.join(f)).unwrap())
+                .collect();
+            v.push(std::fs::read(dec).unwrap());
+            let r: serde_json::Value =
+                serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+            v.push(r["counts"].to_string().into_bytes());
+            v
+        })
+        .collect();
+    assert!(outputs[0] == outputs[1] && outputs[1] == outputs[2]);
+}
+
+#[test]
+fn an_animation_writes_every_image_per_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = SynthParams {
+        width: 8,
+        height: 8,
+        frames: 3,
+        spp: 4,
+        ..SynthParams::default()
+    };
+    let dump = synth(dir.path(), "a.pds", &p);
+    let out = dir.path().join("out");
+    run_ok(&["filter", &dump, "-o", out.to_str().unwrap()]);
+    assert_eq!(
+        files(&out),
+        [
+            "filtered_0000.exr",
+            "filtered_0001.exr",
+            "filtered_0002.exr",
+            "mean_0000.exr",
+            "mean_0001.exr",
+            "mean_0002.exr",
+            "report.json"
+        ]
+    );
+}
+
+#[test]
+fn the_mean_against_itself_as_reference_has_zero_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = SynthParams {
+        width: 16,
+        height: 16,
+        spp: 8,
+        ..SynthParams::default()
+    };
+    let dump = synth(dir.path(), "d.pds", &p);
+    let a = dir.path().join("a");
+    run_ok(&["filter", &dump, "-o", a.to_str().unwrap()]);
+    let b = dir.path().join("b");
+    let r = a.join("mean.exr");
+    run_ok(&[
+        "filter",
+        &dump,
+        "-o",
+        b.to_str().unwrap(),
+        "--reference",
+        r.to_str().unwrap(),
+    ]);
+    let rep: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(b.join("report.json")).unwrap()).unwrap();
+    assert_eq!(rep["metrics"]["mean"]["rms"].as_f64().unwrap(), 0.0);
+    assert_eq!(
+        rep["metrics"]["mean"]["energy_ratio"].as_f64().unwrap(),
+        1.0
+    );
+    assert!(rep["metrics"]["filtered"]["rms"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn bad_input_is_one_line_naming_the_file_and_leaves_no_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let o = out.to_str().unwrap();
+    let missing = dir.path().join("missing.pds");
+    let e = run_err(&["filter", missing.to_str().unwrap(), "-o", o]);
+    assert!(e.contains("missing.pds"), "{e}");
+
+    let junk = dir.path().join("junk.pds");
+    std::fs::write(&junk, b"PDSDUMP2 and then some bytes").unwrap();
+    let e = run_err(&["filter", junk.to_str().unwrap(), "-o", o]);
+    assert!(e.contains("junk.pds") && e.contains("magic"), "{e}");
+
+    let h = header(4, 4, 1);
+    let good = write_dump(
+        dir.path(),
+        "good.pds",
+        &h,
+        &[Record::new(1.0, 1.0, 0.0, [1.0; 3]); 4],
+    );
+    let mut bytes = std::fs::read(&good).unwrap();
+    bytes.truncate(bytes.len() - 5);
+    let short = dir.path().join("short.pds");
+    std::fs::write(&short, &bytes).unwrap();
+    let e = run_err(&["filter", short.to_str().unwrap(), "-o", o]);
+    assert!(e.contains("short.pds") && e.contains("bytes"), "{e}");
+    let e = run_err(&["info", short.to_str().unwrap()]);
+    assert!(e.contains("short.pds"), "{e}");
+    assert!(files(&out).is_empty());
+
+    // An output directory that cannot be created (its parent is a file).
+    let bad_out = good.join("out");
+    let e = run_err(&[
+        "filter",
+        good.to_str().unwrap(),
+        "-o",
+        bad_out.to_str().unwrap(),
+    ]);
+    assert!(e.contains("good.pds/out"), "{e}");
+
+    let e = run_err(&["filter", good.to_str().unwrap(), "-o", o, "--k", "0"]);
+    assert!(e.contains("k"), "{e}");
+    let e = run_err(&[
+        "filter",
+        good.to_str().unwrap(),
+        "-o",
+        o,
+        "--sigma-color",
+        "0",
+    ]);
+    assert!(e.contains("sigma-color"), "{e}");
+    assert!(files(&out).iter().all(|f| !f.contains(".tmp")));
+}
+
+#[test]
+fn info_reports_counts_and_exact_percentiles() {
+    let dir = tempfile::tempdir().unwrap();
+    let h = header(10, 1, 1);
+    // Red channel 1..=1000; plus two invalid records.
+    let mut recs: Vec<Record> = (1..=1000)
+        .map(|i| Record::new((i % 10) as f32, 0.5, 0.0, [i as f32, 0.0, -1.0]))
+        .collect();
+    recs.push(Record::new(f32::NAN, 0.0, 0.0, [0.0; 3]));
+    recs.push(Record::new(1.0, 0.5, 2.0, [0.0; 3]));
+    let p = write_dump(dir.path(), "i.pds", &h, &recs);
+    let json = run_ok(&["info", p.to_str().unwrap(), "--json"]);
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(v["valid"], 1000);
+    assert_eq!(v["invalid"]["non_finite"], 1);
+    assert_eq!(v["invalid"]["outside_time"], 1);
+    let r = &v["channels"][0];
+    assert_eq!(r["min"], 1.0);
+    assert_eq!(r["p50"], 500.0);
+    assert_eq!(r["p99"], 990.0);
+    assert_eq!(r["p99_9"], 999.0);
+    assert_eq!(r["max"], 1000.0);
+    assert_eq!(v["channels"][2]["p50"], -1.0);
+    let text = run_ok(&["info", p.to_str().unwrap()]);
+    assert!(text.contains("1000 valid"));
+}

@@ -1,0 +1,114 @@
+//! Shared test helpers, and the oracle: a plain single-threaded replay of
+//! SPEC §3 by brute force, written independently of the library's indexes.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+
+use pathdensity::dump::{DumpWriter, Header, Order, Record, Validity};
+use pathdensity::joint::JointSpace;
+
+pub const INVALID: u8 = 0;
+pub const STREAM: u8 = 1;
+pub const FINAL: u8 = 2;
+pub const REJECTED: u8 = 3;
+
+pub fn header(width: u32, height: u32, frames: u32) -> Header {
+    Header {
+        width,
+        height,
+        frames,
+        spp: 0,
+        sample_count: 0,
+        order: Order::Unspecified,
+        scene: "test".into(),
+        seed: 0,
+        producer: "tests".into(),
+    }
+}
+
+/// Writes `records` as a dump under `dir`.
+pub fn write_dump(dir: &Path, name: &str, h: &Header, records: &[Record]) -> PathBuf {
+    let path = dir.join(name);
+    let mut w = DumpWriter::create(&path, h.clone()).unwrap();
+    w.push_all(records).unwrap();
+    w.finish().unwrap();
+    path
+}
+
+fn point(space: &JointSpace, r: &Record, animated: bool) -> Vec<f32> {
+    if animated {
+        space.point::<6>(r).to_vec()
+    } else {
+        space.point::<5>(r).to_vec()
+    }
+}
+
+fn distance(p: &[f32], q: &[f32]) -> f64 {
+    p.iter()
+        .zip(q)
+        .map(|(&a, &b)| (a as f64 - b as f64) * (a as f64 - b as f64))
+        .fold(0.0, |s, t| s + t)
+        .sqrt()
+}
+
+fn sigma_brute(q: &[f32], set: &[(Vec<f32>, usize)], skip: Option<usize>, k: usize) -> f64 {
+    let mut d: Vec<f64> = set
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| Some(*i) != skip)
+        .map(|(_, (p, _))| distance(p, q))
+        .collect();
+    if d.len() < k {
+        return f64::INFINITY;
+    }
+    d.sort_by(f64::total_cmp);
+    d[..k].iter().fold(0.0, |s, &v| s + v) / k as f64
+}
+
+/// The oracle: decisions (one byte per record) and the deciding σ (NaN
+/// for invalid records), by brute force in file order.
+pub fn oracle(records: &[Record], h: &Header, k: usize, space: &JointSpace) -> (Vec<u8>, Vec<f64>) {
+    let mut dec = vec![INVALID; records.len()];
+    let mut sig = vec![f64::NAN; records.len()];
+    let mut t: Vec<(Vec<f32>, usize)> = Vec::new();
+    for (i, r) in records.iter().enumerate() {
+        if r.validity(h) != Validity::Valid {
+            continue;
+        }
+        let p = point(space, r, h.frames > 1);
+        let s = sigma_brute(&p, &t, None, k);
+        sig[i] = s;
+        if s < 1.0 {
+            dec[i] = STREAM;
+        } else {
+            dec[i] = REJECTED;
+            t.push((p, i));
+        }
+    }
+    for j in 0..t.len() {
+        let s = sigma_brute(&t[j].0, &t, Some(j), k);
+        let i = t[j].1;
+        sig[i] = s;
+        if s < 1.0 {
+            dec[i] = FINAL;
+        }
+    }
+    (dec, sig)
+}
+
+/// A deterministic pseudo-random stream for building test dumps.
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 1).
+    pub fn f32(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+}

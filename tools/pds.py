@@ -1,0 +1,118 @@
+"""Read and write pathdensity sample dumps (.pds, format version 1) with numpy.
+
+A dump is: b"PDSDUMP1", u32 version = 1, u32 header_len, the header (bincode 2,
+fixed-width little-endian integers, strings as u64 length + UTF-8), zero
+padding up to a multiple of 64 bytes, then records of six little-endian f32:
+x, y, t, r, g, b. See README.md ("The dump format") for the fields.
+
+    import pds
+    hdr, rec = pds.read("scene.pds")          # rec is a read-only np.memmap
+    rec["r"].max()
+    pds.write("out.pds", rec, width=hdr["width"], height=hdr["height"])
+
+Run `python3 tools/pds.py FILE` to print a dump's header.
+"""
+
+import os
+import struct
+import sys
+
+import numpy as np
+
+MAGIC = b"PDSDUMP1"
+VERSION = 1
+HEADER_LEN_MAX = 65536
+RECORD = np.dtype([(c, "<f4") for c in ("x", "y", "t", "r", "g", "b")])
+ORDERS = {"unspecified": 0, "pixel": 1, "pass": 2}
+
+
+def _data_offset(header_len):
+    return (16 + header_len + 63) // 64 * 64
+
+
+def encode_header(width, height, frames=1, spp=0, sample_count=0, order=0,
+                  scene="", seed=0, producer="tools/pds.py"):
+    """The bincode 2 (fixed-int, little-endian) encoding of the header."""
+    if isinstance(order, str):
+        order = ORDERS[order]
+    s, p = scene.encode(), producer.encode()
+    return (struct.pack("<IIIIQB", width, height, frames, spp, sample_count, order)
+            + struct.pack("<Q", len(s)) + s + struct.pack("<Q", seed)
+            + struct.pack("<Q", len(p)) + p)
+
+
+def decode_header(buf):
+    """Decodes a header body; raises ValueError unless it spans buf exactly."""
+    width, height, frames, spp, count, order = struct.unpack_from("<IIIIQB", buf, 0)
+    o = 25
+    (n,) = struct.unpack_from("<Q", buf, o)
+    scene = bytes(buf[o + 8:o + 8 + n]).decode()
+    o += 8 + n
+    (seed,) = struct.unpack_from("<Q", buf, o)
+    o += 8
+    (n,) = struct.unpack_from("<Q", buf, o)
+    producer = bytes(buf[o + 8:o + 8 + n]).decode()
+    o += 8 + n
+    if o != len(buf):
+        raise ValueError(f"header decodes from {o} bytes, header_len is {len(buf)}")
+    if order > 2:
+        raise ValueError(f"unknown record order {order}")
+    return dict(width=width, height=height, frames=frames, spp=spp,
+                sample_count=count, order=order, scene=scene, seed=seed,
+                producer=producer)
+
+
+def read(path):
+    """Returns (header dict, records) with records a read-only np.memmap of RECORD."""
+    size = os.path.getsize(path)
+    with open(path, "rb") as f:
+        fixed = f.read(16)
+        if len(fixed) < 16 or fixed[:8] != MAGIC:
+            raise ValueError(f"{path}: not a pathdensity dump")
+        version, header_len = struct.unpack("<II", fixed[8:])
+        if version != VERSION:
+            raise ValueError(f"{path}: unsupported version {version}")
+        if header_len > HEADER_LEN_MAX:
+            raise ValueError(f"{path}: header_len {header_len} exceeds {HEADER_LEN_MAX}")
+        off = _data_offset(header_len)
+        head = f.read(off - 16)
+    if len(head) != off - 16:
+        raise ValueError(f"{path}: file too short for its header")
+    hdr = decode_header(head[:header_len])
+    if any(head[header_len:]):
+        raise ValueError(f"{path}: non-zero padding")
+    expected = off + 24 * hdr["sample_count"]
+    if size != expected:
+        raise ValueError(f"{path}: file size is {size} bytes, expected {expected}")
+    if hdr["sample_count"] == 0:
+        return hdr, np.zeros(0, RECORD)
+    return hdr, np.memmap(path, RECORD, "r", offset=off, shape=(hdr["sample_count"],))
+
+
+def write(path, records, width, height, frames=1, spp=0, order=0, scene="",
+          seed=0, producer="tools/pds.py"):
+    """Writes records (anything convertible to RECORD, or an (n, 6) float
+    array) to path, under a temporary name renamed into place."""
+    records = np.asarray(records)
+    if records.dtype != RECORD:
+        records = np.ascontiguousarray(records, dtype="<f4").reshape(-1, 6).view(RECORD).ravel()
+    body = encode_header(width, height, frames, spp, len(records), order, scene, seed, producer)
+    if len(body) > HEADER_LEN_MAX:
+        raise ValueError("header too long")
+    prefix = MAGIC + struct.pack("<II", VERSION, len(body)) + body
+    prefix += b"\0" * (_data_offset(len(body)) - len(prefix))
+    tmp = f"{path}.tmp-{os.getpid()}"
+    try:
+        with open(tmp, "wb") as f:
+            f.write(prefix)
+            f.write(records.astype(RECORD, copy=False).tobytes())
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+if __name__ == "__main__":
+    for p in sys.argv[1:]:
+        h, r = read(p)
+        print(p, h, f"{len(r)} records")
