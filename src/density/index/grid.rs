@@ -35,6 +35,8 @@ pub struct Grid<const D: usize> {
     arena: Vec<[f32; D]>,
 }
 
+// Axis loops index several parallel arrays (side, dims, cell coordinates).
+#[allow(clippy::needless_range_loop)]
 impl<const D: usize> Grid<D> {
     /// A grid covering joint coordinates `[0, extent[a])` on each gridded
     /// axis a (x, y, then t when D = 6).
