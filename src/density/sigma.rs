@@ -16,6 +16,8 @@ pub struct KBest {
     d: Vec<f64>,
     /// Squared distances above this cannot enter.
     screen2: f64,
+    /// Bumped on every change, so callers can skip re-judging.
+    version: u64,
 }
 
 impl KBest {
@@ -26,6 +28,7 @@ impl KBest {
             len: 0,
             d: vec![0.0; k],
             screen2: f64::INFINITY,
+            version: 0,
         }
     }
 
@@ -48,6 +51,11 @@ impl KBest {
     /// The distances, ascending.
     pub fn as_slice(&self) -> &[f64] {
         &self.d[..self.len]
+    }
+
+    /// Changes whenever the contents change.
+    pub fn version(&self) -> u64 {
+        self.version
     }
 
     pub fn is_full(&self) -> bool {
@@ -86,6 +94,7 @@ impl KBest {
             i -= 1;
         }
         self.d[i] = dist;
+        self.version += 1;
         if self.len == self.k {
             self.update_screen();
         }
