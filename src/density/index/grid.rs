@@ -44,7 +44,7 @@ impl<const D: usize> Grid<D> {
         let axes = if D == 6 { 3 } else { 2 };
         // One joint unit (σ_image pixels): σ < 1 mostly needs ring 0 and 1.
         // Measured on the benchmark dump: sides 0.5 and 2 are slower.
-        let mut side = [std::env::var("PD_CELL").ok().and_then(|v| v.parse().ok()).unwrap_or(1.0f64); 3];
+        let mut side = [1.0f64; 3];
         let dims_for = |side: &[f64; 3]| {
             let mut d = [1usize; 3];
             for a in 0..axes {
