@@ -22,19 +22,28 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 fn main() {
     let filter_arg = std::env::args().skip(1).find(|a| !a.starts_with('-'));
-    let runs: usize = std::env::var("PD_BENCH_RUNS").ok().and_then(|v| v.parse().ok()).unwrap_or(3);
+    let runs: usize = std::env::var("PD_BENCH_RUNS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(3);
     let dir = tempfile::tempdir().unwrap();
     println!("| order | index | k | threads | median s | M samples/s | stored |T| |");
     println!("|---|---|---|---|---|---|---|");
     for order in [Order::PixelMajor, Order::PassMajor] {
-        let p = SynthParams { order, ..SynthParams::default() };
+        let p = SynthParams {
+            order,
+            ..SynthParams::default()
+        };
         let path = dir.path().join(format!("{order:?}.pds"));
         p.write(&path).unwrap();
         let dump = DumpReader::open(&path).unwrap();
         let (h, recs) = (dump.header().clone(), dump.records());
         let n = recs.len() as f64;
         let label = format!("{order:?} mean-only");
-        if filter_arg.as_ref().is_none_or(|f| label.contains(f.as_str())) {
+        if filter_arg
+            .as_ref()
+            .is_none_or(|f| label.contains(f.as_str()))
+        {
             let t: Vec<f64> = (0..runs)
                 .map(|_| {
                     let t0 = Instant::now();
@@ -44,23 +53,38 @@ fn main() {
                 })
                 .collect();
             let m = median(t);
-            println!("| {order:?} | mean-only floor | – | 1 | {m:.3} | {:.2} | – |", n / m / 1e6);
+            println!(
+                "| {order:?} | mean-only floor | – | 1 | {m:.3} | {:.2} | – |",
+                n / m / 1e6
+            );
         }
         for index in [IndexKind::Grid, IndexKind::Kdtree] {
             for k in [10, 50] {
                 for threads in [1, 2] {
                     let label = format!("{order:?} {index:?} k{k} t{threads}").to_lowercase();
-                    if filter_arg.as_ref().is_some_and(|f| !label.contains(&f.to_lowercase())) {
+                    if filter_arg
+                        .as_ref()
+                        .is_some_and(|f| !label.contains(&f.to_lowercase()))
+                    {
                         continue;
                     }
-                    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-                    let params = FilterParams { k, index, ..FilterParams::default() };
+                    let pool = rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .unwrap();
+                    let params = FilterParams {
+                        k,
+                        index,
+                        ..FilterParams::default()
+                    };
                     let reps = if index == IndexKind::Kdtree { 1 } else { runs };
                     let mut stored = 0;
                     let t: Vec<f64> = (0..reps)
                         .map(|_| {
                             let t0 = Instant::now();
-                            let r = pool.install(|| density::run(recs, &h, &params, &ProgressBar::hidden()));
+                            let r = pool.install(|| {
+                                density::run(recs, &h, &params, &ProgressBar::hidden())
+                            });
                             stored = r.counts.stored;
                             t0.elapsed().as_secs_f64()
                         })

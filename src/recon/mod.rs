@@ -148,17 +148,6 @@ fn add(acc: &mut [f64; 4], c: [f64; 3], w: f64) {
     acc[3] += w;
 }
 
-/// Number of valid samples each pixel contains (the box bin of the sample).
-pub fn occupancy(records: &[Record], h: &Header) -> Vec<u32> {
-    let mut n = vec![0u32; h.pixels() * h.frames as usize];
-    for r in records {
-        if r.validity(h) == Validity::Valid {
-            n[r.pixel_index(h)] += 1;
-        }
-    }
-    n
-}
-
 /// The mean and filtered images of SPEC §4, in one pass over the dump.
 pub struct Reconstruction {
     pub mean: Image,
