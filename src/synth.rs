@@ -54,6 +54,17 @@ fn mix(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// `n + u` for u ∈ [0, 1), kept below n + 1: the f32 sum can round up to
+/// n + 1, which would put the sample outside its pixel (or the film).
+fn inside(n: u32, u: f32) -> f32 {
+    let v = n as f32 + u;
+    if v >= (n + 1) as f32 {
+        ((n + 1) as f32).next_down()
+    } else {
+        v
+    }
+}
+
 fn uniform(h: u64) -> f32 {
     (h >> 40) as f32 / (1u64 << 24) as f32
 }
@@ -65,9 +76,10 @@ impl SynthParams {
 
     /// Sample `s` of pixel `(i, j)` in frame `f`.
     pub fn sample(&self, f: u32, i: u32, j: u32, s: u32) -> Record {
-        let key =
-            ((self.seed * 0x1_0000 + f as u64) << 40) ^ ((j as u64) << 26) ^ ((i as u64) << 12);
-        let mut h = mix(key ^ mix(s as u64));
+        // Chained mixing: distinct (seed, frame, pixel, sample) never share a
+        // stream, and no arithmetic can overflow whatever the seed.
+        let pixel = (j as u64) << 32 | i as u64;
+        let mut h = mix(mix(mix(mix(self.seed) ^ f as u64) ^ pixel) ^ s as u64);
         let mut next = || {
             h = mix(h);
             uniform(h)
@@ -76,13 +88,9 @@ impl SynthParams {
         let (x, y) = if self.pixel_centre {
             (i as f32 + 0.5, j as f32 + 0.5)
         } else {
-            (i as f32 + jx.min(0.999_999), j as f32 + jy.min(0.999_999))
+            (inside(i, jx), inside(j, jy))
         };
-        let t = if self.frames > 1 {
-            f as f32 + jt.min(0.999_99)
-        } else {
-            0.0
-        };
+        let t = if self.frames > 1 { inside(f, jt) } else { 0.0 };
         let (u, v) = (x / self.width as f32, y / self.height as f32);
         let tau = std::f32::consts::TAU;
         let base = [
