@@ -15,13 +15,30 @@ use pathdensity::dump::{DumpReader, Order};
 use pathdensity::recon::{self, ReconFilter};
 use pathdensity::synth::SynthParams;
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+/// Median wall time of `runs` calls of `f`.
+fn median_seconds(runs: usize, mut f: impl FnMut()) -> f64 {
+    let mut t: Vec<f64> = (0..runs)
+        .map(|_| {
+            let t0 = Instant::now();
+            f();
+            t0.elapsed().as_secs_f64()
+        })
+        .collect();
+    t.sort_by(f64::total_cmp);
+    t[t.len() / 2]
 }
 
 fn main() {
-    let filter_arg = std::env::args().skip(1).find(|a| !a.starts_with('-'));
+    let filter_arg = std::env::args()
+        .skip(1)
+        .find(|a| !a.starts_with('-'))
+        .map(|a| a.to_lowercase());
+    // Rows run when their label contains the argument (any case).
+    let wanted = |label: &str| {
+        filter_arg
+            .as_ref()
+            .is_none_or(|f| label.to_lowercase().contains(f.as_str()))
+    };
     let runs: usize = std::env::var("PD_BENCH_RUNS")
         .ok()
         .and_then(|v| v.parse().ok())
@@ -39,20 +56,11 @@ fn main() {
         let dump = DumpReader::open(&path).unwrap();
         let (h, recs) = (dump.header().clone(), dump.records());
         let n = recs.len() as f64;
-        let label = format!("{order:?} mean-only");
-        if filter_arg
-            .as_ref()
-            .is_none_or(|f| label.contains(f.as_str()))
-        {
-            let t: Vec<f64> = (0..runs)
-                .map(|_| {
-                    let t0 = Instant::now();
-                    let r = recon::reconstruct(recs, &h, ReconFilter::Box, |_| true);
-                    std::hint::black_box(r.mean.data[0]);
-                    t0.elapsed().as_secs_f64()
-                })
-                .collect();
-            let m = median(t);
+        if wanted(&format!("{order:?} mean-only")) {
+            let m = median_seconds(runs, || {
+                let r = recon::reconstruct(recs, &h, ReconFilter::Box, |_| true);
+                std::hint::black_box(r.mean.data[0]);
+            });
             println!(
                 "| {order:?} | mean-only floor | – | 1 | {m:.3} | {:.2} | – |",
                 n / m / 1e6
@@ -61,11 +69,7 @@ fn main() {
         for index in [IndexKind::Grid, IndexKind::Kdtree] {
             for k in [10, 50] {
                 for threads in [1, 2] {
-                    let label = format!("{order:?} {index:?} k{k} t{threads}").to_lowercase();
-                    if filter_arg
-                        .as_ref()
-                        .is_some_and(|f| !label.contains(&f.to_lowercase()))
-                    {
+                    if !wanted(&format!("{order:?} {index:?} k{k} t{threads}")) {
                         continue;
                     }
                     let pool = rayon::ThreadPoolBuilder::new()
@@ -79,17 +83,11 @@ fn main() {
                     };
                     let reps = if index == IndexKind::Kdtree { 1 } else { runs };
                     let mut stored = 0;
-                    let t: Vec<f64> = (0..reps)
-                        .map(|_| {
-                            let t0 = Instant::now();
-                            let r = pool.install(|| {
-                                density::run(recs, &h, &params, &ProgressBar::hidden())
-                            });
-                            stored = r.counts.stored;
-                            t0.elapsed().as_secs_f64()
-                        })
-                        .collect();
-                    let m = median(t);
+                    let m = median_seconds(reps, || {
+                        let r = pool
+                            .install(|| density::run(recs, &h, &params, &ProgressBar::hidden()));
+                        stored = r.counts.stored;
+                    });
                     println!(
                         "| {order:?} | {index:?} | {k} | {threads} | {m:.3} | {:.2} | {stored} |",
                         n / m / 1e6

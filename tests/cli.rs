@@ -42,6 +42,10 @@ fn files(dir: &Path) -> Vec<String> {
     v
 }
 
+fn report(out_dir: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(out_dir.join("report.json")).unwrap()).unwrap()
+}
+
 fn synth(dir: &Path, name: &str, p: &SynthParams) -> String {
     let path = dir.join(name);
     p.write(&path).unwrap();
@@ -74,9 +78,8 @@ fn filter_writes_images_decisions_and_a_report() {
         files(&out),
         ["filtered.exr", "mean.exr", "report.json", "sigma.exr"]
     );
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
-    let c = &report["counts"];
+    let rep = report(&out);
+    let c = &rep["counts"];
     let n = |k: &str| c[k].as_u64().unwrap();
     assert_eq!(n("records"), p.sample_count());
     assert_eq!(
@@ -128,8 +131,7 @@ fn every_output_is_bit_identical_for_1_2_and_8_threads() {
                 .map(|f| std::fs::read(out.join(f)).unwrap())
                 .collect();
             v.push(std::fs::read(dec).unwrap());
-            let r: serde_json::Value =
-                serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+            let r = report(&out);
             v.push(r["counts"].to_string().into_bytes());
             v
         })
@@ -186,8 +188,7 @@ fn the_mean_against_itself_as_reference_has_zero_error() {
         "--reference",
         r.to_str().unwrap(),
     ]);
-    let rep: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(b.join("report.json")).unwrap()).unwrap();
+    let rep = report(&b);
     assert_eq!(rep["metrics"]["mean"]["rms"].as_f64().unwrap(), 0.0);
     assert_eq!(
         rep["metrics"]["mean"]["energy_ratio"].as_f64().unwrap(),

@@ -156,15 +156,20 @@ fn n_identical_copies_of_an_isolated_sample_reject_exactly_k() {
     }
 }
 
-#[test]
-fn sigma_is_the_mean_over_exactly_the_k_nearest() {
-    // σ_image = 1 and colour ignored: points on a line at known distances.
-    let h = header(64, 1, 1);
-    let space = JointSpace {
+/// σ_image = 1 and colour ignored: joint distances are pixel distances.
+fn line_space() -> JointSpace {
+    JointSpace {
         sigma_image: 1.0,
         sigma_color: 1e12,
         ..JointSpace::default()
-    };
+    }
+}
+
+#[test]
+fn sigma_is_the_mean_over_exactly_the_k_nearest() {
+    // Points on a line at known distances.
+    let h = header(64, 1, 1);
+    let space = line_space();
     let at = |x: f32| Record::new(x, 0.5, 0.0, [0.5, 0.5, 0.5]);
     // T = {10, 11.5, 14}; the query at 10.25 has distances 0.25, 1.25, 3.75.
     // k = 2: σ = 0.75 < 1 (accepted); k = 3: σ = 1.75 (stored).
@@ -190,11 +195,7 @@ fn the_final_pass_excludes_the_sample_itself() {
     // In the final pass s0 sees T \ {s0} = ∅, so σ = +∞ and it is rejected;
     // counting itself at distance 0 would wrongly accept it.
     let h = header(16, 1, 1);
-    let space = JointSpace {
-        sigma_image: 1.0,
-        sigma_color: 1e12,
-        ..JointSpace::default()
-    };
+    let space = line_space();
     let recs = [
         Record::new(3.0, 0.5, 0.0, [1.0; 3]),
         Record::new(3.5, 0.5, 0.0, [1.0; 3]),

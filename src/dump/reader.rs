@@ -33,7 +33,7 @@ impl DumpReader {
         }
         let size = meta.len();
         let mut fixed = [0u8; 16];
-        read_prefix(&mut file, &mut fixed)
+        file.read_exact(&mut fixed)
             .map_err(|_| err(format!("file is {size} bytes, too short for a dump prefix")))?;
         if &fixed[0..8] != MAGIC {
             return Err(err("not a pathdensity dump (magic is not PDSDUMP1)".into()));
@@ -117,8 +117,4 @@ impl DumpReader {
             None => &[],
         }
     }
-}
-
-fn read_prefix(file: &mut File, buf: &mut [u8; 16]) -> std::io::Result<()> {
-    file.read_exact(buf)
 }
