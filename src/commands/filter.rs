@@ -9,7 +9,7 @@ use anyhow::{Context, Result, bail};
 
 use crate::density::{self, Decision, FilterParams};
 use crate::dump::DumpReader;
-use crate::io::{atomic, exr};
+use crate::io::{atomic, exr, png};
 use crate::metrics;
 use crate::recon::{self, ReconFilter};
 use crate::report::{FilterReport, Timing};
@@ -108,8 +108,11 @@ pub fn filter(opts: &FilterOptions) -> Result<FilterReport> {
 
     let t_write = Instant::now();
     let dir = &opts.out_dir;
-    let mut outputs = exr::write_image(dir, "filtered", &rec.filtered)?;
-    outputs.extend(exr::write_image(dir, "mean", &rec.mean)?);
+    let mut outputs = Vec::new();
+    for (name, img) in [("filtered", &rec.filtered), ("mean", &rec.mean)] {
+        outputs.extend(exr::write_image(dir, name, img)?);
+        outputs.extend(png::write_previews(dir, name, img, opts.exposure)?);
+    }
     if let Some(img) = &sigma_img {
         outputs.extend(exr::write_image(dir, "sigma", img)?);
     }

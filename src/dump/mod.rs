@@ -25,21 +25,22 @@ pub fn data_offset(header_len: usize) -> usize {
 /// file, so the CLI can print it as one line.
 #[derive(Debug, thiserror::Error)]
 pub enum DumpError {
-    #[error("{path}: {source}")]
+    // The io::Error is part of the message, not a `source`: a source would
+    // make `{:#}` print it twice.
+    #[error("{path}: {error}")]
     Io {
         path: String,
-        #[source]
-        source: std::io::Error,
+        error: std::io::Error,
     },
     #[error("{path}: {problem}")]
     Format { path: String, problem: String },
 }
 
 impl DumpError {
-    pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
+    pub(crate) fn io(path: &std::path::Path, error: std::io::Error) -> Self {
         DumpError::Io {
             path: path.display().to_string(),
-            source,
+            error,
         }
     }
     pub(crate) fn format(path: &std::path::Path, problem: impl Into<String>) -> Self {

@@ -28,9 +28,15 @@ impl AtomicFile {
         }
     }
 
-    /// Creates (truncates) the temporary file.
+    /// Creates (truncates) the temporary file, open for reading too so
+    /// that it can be memory-mapped for writing.
     pub fn create(&self) -> std::io::Result<File> {
-        File::create(&self.tmp)
+        File::options()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&self.tmp)
     }
 
     /// The temporary path, for writers that open files themselves.

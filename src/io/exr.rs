@@ -27,19 +27,19 @@ pub fn write_frame(path: &Path, img: &Image, frame: usize) -> Result<()> {
 pub fn write_image(dir: &Path, name: &str, img: &Image) -> Result<Vec<String>> {
     let mut names = Vec::new();
     for f in 0..img.frames {
-        let file = frame_file_name(name, f, img.frames);
+        let file = frame_file_name(name, f, img.frames, "exr");
         write_frame(&dir.join(&file), img, f)?;
         names.push(file);
     }
     Ok(names)
 }
 
-/// `NAME.exr` for a still, `NAME_0007.exr` for frame 7 of an animation.
-pub fn frame_file_name(name: &str, frame: usize, frames: usize) -> String {
+/// `NAME.EXT` for a still, `NAME_0007.EXT` for frame 7 of an animation.
+pub fn frame_file_name(name: &str, frame: usize, frames: usize, ext: &str) -> String {
     if frames > 1 {
-        format!("{name}_{frame:04}.exr")
+        format!("{name}_{frame:04}.{ext}")
     } else {
-        format!("{name}.exr")
+        format!("{name}.{ext}")
     }
 }
 
@@ -72,7 +72,7 @@ pub fn read_reference(path: &Path, width: usize, height: usize, frames: usize) -
                 .file_name()
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_default();
-            path.with_file_name(frame_file_name(&name, f, frames))
+            path.with_file_name(frame_file_name(&name, f, frames, "exr"))
         } else {
             path.to_path_buf()
         };

@@ -1,4 +1,5 @@
-//! Files in and out: atomic writes, EXR images.
+//! Files in and out: atomic writes, EXR images, PNG previews.
 
 pub mod atomic;
 pub mod exr;
+pub mod png;

@@ -1,0 +1,90 @@
+//! The one-command demo: render the glossy room, render its reference,
+//! filter the dump and print the summary. No arguments needed.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+use clap::Parser;
+use pathdensity::commands::{filter, progress_bar};
+use pathdensity::dump::Order;
+use pathdensity::io::exr;
+use pathdensity::recon::ReconFilter;
+use pathdensity_render::sampler::independent_seed;
+use pathdensity_render::{RenderSettings, SceneName, render_dump, render_reference};
+
+/// Render a scene, its reference, and filter it.
+#[derive(Parser)]
+#[command(name = "demo", version)]
+struct Cli {
+    #[arg(long, value_enum, default_value_t = SceneName::GlossyRoom)]
+    scene: SceneName,
+    #[arg(short, long, default_value = "out/demo")]
+    out: PathBuf,
+    /// Film width and height.
+    #[arg(long, default_value_t = 128)]
+    size: u32,
+    #[arg(long, default_value_t = 16)]
+    spp: u32,
+    #[arg(long, default_value_t = 1024)]
+    reference_spp: u32,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    std::fs::create_dir_all(&cli.out)?;
+    let name = cli.scene.as_str();
+    let frames = cli.scene.default_frames();
+    let scene = cli.scene.build(frames);
+    let mut st = RenderSettings {
+        width: cli.size,
+        height: cli.size,
+        frames,
+        spp: cli.spp,
+        order: Order::PixelMajor,
+        seed: cli.seed,
+    };
+    let dump = cli.out.join(format!("{name}.pds"));
+    let t = Instant::now();
+    render_dump(&scene, &st, &dump, &progress_bar(0, "render"))?;
+    println!(
+        "rendered {} ({}×{}, {} spp) in {:.2} s",
+        dump.display(),
+        st.width,
+        st.height,
+        st.spp,
+        t.elapsed().as_secs_f64()
+    );
+    st.spp = cli.reference_spp;
+    st.seed = independent_seed(cli.seed);
+    let t = Instant::now();
+    let reference = render_reference(
+        &scene,
+        &st,
+        ReconFilter::Box,
+        &progress_bar(0, "reference"),
+    )?;
+    let ref_name = format!("{name}_ref");
+    let written = exr::write_image(&cli.out, &ref_name, &reference)?;
+    println!(
+        "rendered the reference ({} spp) in {:.2} s",
+        st.spp,
+        t.elapsed().as_secs_f64()
+    );
+    let mut opts = filter::FilterOptions::new(&dump, cli.out.join("filtered"));
+    opts.reference = Some(cli.out.join(&written[0]));
+    let report = filter::filter(&opts)?;
+    print!("{}", report.summary());
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("demo: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
