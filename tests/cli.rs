@@ -76,7 +76,14 @@ fn filter_writes_images_decisions_and_a_report() {
     assert!(stdout.contains("accepted streaming"));
     assert_eq!(
         files(&out),
-        ["filtered.exr", "mean.exr", "report.json", "sigma.exr"]
+        [
+            "filtered.exr",
+            "filtered.png",
+            "mean.exr",
+            "mean.png",
+            "report.json",
+            "sigma.exr"
+        ]
     );
     let rep = report(&out);
     let c = &rep["counts"];
@@ -152,18 +159,12 @@ fn an_animation_writes_every_image_per_frame() {
     let dump = synth(dir.path(), "a.pds", &p);
     let out = dir.path().join("out");
     run_ok(&["filter", &dump, "-o", out.to_str().unwrap()]);
-    assert_eq!(
-        files(&out),
-        [
-            "filtered_0000.exr",
-            "filtered_0001.exr",
-            "filtered_0002.exr",
-            "mean_0000.exr",
-            "mean_0001.exr",
-            "mean_0002.exr",
-            "report.json"
-        ]
-    );
+    let mut expected: Vec<String> = ["filtered", "mean"]
+        .iter()
+        .flat_map(|n| (0..3).flat_map(move |f| ["exr", "png"].map(|e| format!("{n}_{f:04}.{e}"))))
+        .collect();
+    expected.push("report.json".into());
+    assert_eq!(files(&out), expected);
 }
 
 #[test]

@@ -28,10 +28,7 @@ pub enum DumpError {
     // The io::Error is part of the message, not a `source`: a source would
     // make `{:#}` print it twice.
     #[error("{path}: {error}")]
-    Io {
-        path: String,
-        error: std::io::Error,
-    },
+    Io { path: String, error: std::io::Error },
     #[error("{path}: {problem}")]
     Format { path: String, problem: String },
 }

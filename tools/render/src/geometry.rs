@@ -244,13 +244,13 @@ mod tests {
     fn direction_pdf_matches_sampling() {
         let shapes = [
             Shape::sphere(v3(0.0, 2.0, 0.0), 0.3),
-            Shape::quad(v3(-0.2, 2.0, -0.2), v3(0.0, 0.0, 0.4), v3(0.4, 0.0, 0.0)),
+            Shape::quad(v3(-0.2, 2.0, -0.2), v3(0.4, 0.0, 0.0), v3(0.0, 0.0, 0.4)),
         ];
         let from = v3(0.1, 0.0, 0.05);
         for s in &shapes {
             let mut rng = crate::sampler::Sampler::new(3, 0, 0, 0, 0);
             for _ in 0..100 {
-                let (dir, pdf) = s.sample_direction(from, rng.next2()).unwrap();
+                let (dir, pdf) = s.sample_direction(from, rng.uniform2()).unwrap();
                 let r = Ray {
                     origin: from,
                     dir,

@@ -31,7 +31,7 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Sampler) -> Vec3 {
                 let w = prev.map_or(1.0, |(_, pdf)| {
                     power_heuristic(pdf, light_pick * env.pdf(ray.dir))
                 });
-                l += beta.mul(env.radiance(ray.dir)) * w;
+                l += beta * env.radiance(ray.dir) * w;
             }
             break;
         };
@@ -41,17 +41,17 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Sampler) -> Vec3 {
             let w = prev.map_or(1.0, |(from, pdf)| {
                 power_heuristic(pdf, light_pick * prim.shape.direction_pdf(from, &hit))
             });
-            l += beta.mul(le) * w;
+            l += beta * le * w;
         }
         let wo = -ray.dir;
         let material = &prim.material;
         if !material.is_delta() && scene.light_count() > 0 {
-            l += beta.mul(next_event(scene, &hit, wo, id, ray.time, light_pick, rng));
+            l += beta * next_event(scene, &hit, wo, id, ray.time, light_pick, rng);
         }
-        let Some(s) = material.sample(wo, hit.normal, rng.next2(), rng.next()) else {
+        let Some(s) = material.sample(wo, hit.normal, rng.uniform2(), rng.uniform()) else {
             break;
         };
-        beta = beta.mul(s.weight);
+        beta = beta * s.weight;
         prev = if s.delta {
             None
         } else {
@@ -59,7 +59,7 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Sampler) -> Vec3 {
         };
         if depth >= ROULETTE_DEPTH {
             let q = beta.max_component().min(0.95);
-            if rng.next() >= q {
+            if rng.uniform() >= q {
                 break;
             }
             beta = beta / q;
@@ -84,17 +84,12 @@ fn next_event(
     rng: &mut Sampler,
 ) -> Vec3 {
     let n = scene.light_count();
-    let pick = ((rng.next() * n as f64) as usize).min(n - 1);
-    let (u, u_pick) = (rng.next2(), rng.next());
+    let pick = ((rng.uniform() * n as f64) as usize).min(n - 1);
+    let (u, u_pick) = (rng.uniform2(), rng.uniform());
     let light = scene.light(pick);
     let sampled = match light {
-        LightRef::Primitive(i) => scene.primitives[i]
-            .shape
-            .sample_direction(hit.point, u),
-        LightRef::Environment => scene
-            .environment
-            .as_ref()
-            .map(|env| env.sample(u, u_pick)),
+        LightRef::Primitive(i) => scene.primitives[i].shape.sample_direction(hit.point, u),
+        LightRef::Environment => scene.environment.as_ref().map(|env| env.sample(u, u_pick)),
     };
     let Some((wi, pdf)) = sampled else {
         return Vec3::ZERO;
@@ -121,5 +116,5 @@ fn next_event(
         _ => Vec3::ZERO,
     };
     let light_pdf = light_pick * pdf;
-    f.mul(le) * (power_heuristic(light_pdf, bsdf_pdf) / light_pdf)
+    f * le * (power_heuristic(light_pdf, bsdf_pdf) / light_pdf)
 }

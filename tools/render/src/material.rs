@@ -202,7 +202,7 @@ mod tests {
         for m in &mats {
             let mut rng = Sampler::new(1, 0, 0, 0, 0);
             for _ in 0..200 {
-                let Some(s) = m.sample(wo, n, rng.next2(), rng.next()) else {
+                let Some(s) = m.sample(wo, n, rng.uniform2(), rng.uniform()) else {
                     continue;
                 };
                 let (f, pdf) = m.eval(wo, s.wi, n);
@@ -214,28 +214,55 @@ mod tests {
         }
     }
 
-    /// A white furnace: a Lambertian with albedo 1 reflects all energy, and
-    /// the rough conductor with f0 = 1 nearly all (Smith loses a little).
+    /// The directional albedo ∫ f cos θ_i dω_i: by importance sampling it
+    /// must match a brute-force quadrature of `eval` over the hemisphere.
+    /// A Lambertian with albedo 1 reflects everything; the single-scattering
+    /// GGX conductor with f0 = 1 loses some energy, more when rougher.
     #[test]
-    fn albedo_by_monte_carlo() {
+    fn albedo_by_sampling_matches_quadrature() {
         let n = v3(0.0, 0.0, 1.0);
         let wo = v3(0.0, 0.6, 0.8);
-        let albedo = |m: &Material| {
+        let sampled = |m: &Material| {
             let mut rng = Sampler::new(2, 0, 0, 0, 0);
-            let k = 200_000;
+            let k = 400_000;
             (0..k)
-                .filter_map(|_| m.sample(wo, n, rng.next2(), rng.next()))
+                .filter_map(|_| m.sample(wo, n, rng.uniform2(), rng.uniform()))
                 .map(|s| s.weight.x)
                 .sum::<f64>()
                 / k as f64
         };
-        let lambert = albedo(&Material::Lambert { albedo: Vec3::ONE });
-        assert!((lambert - 1.0).abs() < 1e-12);
-        let rough = albedo(&Material::Conductor {
-            f0: Vec3::ONE,
-            alpha: 0.3,
-        });
-        assert!(rough > 0.9 && rough <= 1.0, "{rough}");
+        let quadrature = |m: &Material| {
+            // Midpoint rule in (cos θ, φ): dω = d(cos θ) dφ.
+            let (nt, np) = (2000, 400);
+            let mut sum = 0.0;
+            for a in 0..nt {
+                let z = (a as f64 + 0.5) / nt as f64;
+                let r = (1.0 - z * z).sqrt();
+                for b in 0..np {
+                    let phi = 2.0 * PI * (b as f64 + 0.5) / np as f64;
+                    let wi = v3(r * phi.cos(), r * phi.sin(), z);
+                    sum += m.eval(wo, wi, n).0.x;
+                }
+            }
+            sum * 2.0 * PI / (nt * np) as f64
+        };
+        let lambert = Material::Lambert { albedo: Vec3::ONE };
+        assert!((sampled(&lambert) - 1.0).abs() < 1e-12);
+        assert!((quadrature(&lambert) - 1.0).abs() < 1e-3);
+        let mut previous = 1.0;
+        for alpha in [0.1, 0.3, 0.6] {
+            let m = Material::Conductor {
+                f0: Vec3::ONE,
+                alpha,
+            };
+            let (s, q) = (sampled(&m), quadrature(&m));
+            assert!(
+                (s - q).abs() < 0.01,
+                "alpha {alpha}: sampled {s}, quadrature {q}"
+            );
+            assert!(q < previous && q > 0.5, "alpha {alpha}: albedo {q}");
+            previous = q;
+        }
     }
 
     #[test]

@@ -70,9 +70,9 @@ fn inside(n: u32, u: f64) -> f32 {
 /// the pixel, a time jittered in the frame (animations only), radiance.
 pub fn sample(scene: &Scene, st: &RenderSettings, f: u32, i: u32, j: u32, s: u32) -> Record {
     let mut rng = Sampler::new(st.seed, f, i, j, s);
-    let (x, y) = (inside(i, rng.next()), inside(j, rng.next()));
+    let (x, y) = (inside(i, rng.uniform()), inside(j, rng.uniform()));
     let t = if st.frames > 1 {
-        inside(f, rng.next())
+        inside(f, rng.uniform())
     } else {
         0.0
     };

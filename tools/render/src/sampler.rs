@@ -11,7 +11,7 @@ fn fmix64(mut k: u64) -> u64 {
     k ^ (k >> 33)
 }
 
-/// A counter-based stream: `next` hashes an incrementing counter.
+/// A counter-based stream: `uniform` hashes an incrementing counter.
 #[derive(Clone, Debug)]
 pub struct Sampler {
     key: u64,
@@ -31,14 +31,14 @@ impl Sampler {
     }
 
     /// A uniform number in [0, 1) with 53 random bits.
-    pub fn next(&mut self) -> f64 {
+    pub fn uniform(&mut self) -> f64 {
         self.counter += 1;
         let h = fmix64(self.key ^ fmix64(self.counter));
         (h >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 
-    pub fn next2(&mut self) -> (f64, f64) {
-        (self.next(), self.next())
+    pub fn uniform2(&mut self) -> (f64, f64) {
+        (self.uniform(), self.uniform())
     }
 }
 
@@ -57,9 +57,9 @@ mod tests {
         let mut s1 = Sampler::new(7, 0, 1, 2, 3);
         let mut s2 = Sampler::new(7, 0, 1, 2, 3);
         let mut s3 = Sampler::new(7, 0, 2, 1, 3);
-        let x: Vec<f64> = a.iter().map(|_| s1.next()).collect();
-        let y: Vec<f64> = a.iter().map(|_| s2.next()).collect();
-        let z: Vec<f64> = a.iter().map(|_| s3.next()).collect();
+        let x: Vec<f64> = a.iter().map(|_| s1.uniform()).collect();
+        let y: Vec<f64> = a.iter().map(|_| s2.uniform()).collect();
+        let z: Vec<f64> = a.iter().map(|_| s3.uniform()).collect();
         assert_eq!(x, y);
         assert_ne!(x, z);
         assert!(x.iter().all(|v| (0.0..1.0).contains(v)));
@@ -69,7 +69,7 @@ mod tests {
     fn uniform_mean_is_one_half() {
         let mut s = Sampler::new(1, 0, 0, 0, 0);
         let n = 100_000;
-        let mean: f64 = (0..n).map(|_| s.next()).sum::<f64>() / n as f64;
+        let mean: f64 = (0..n).map(|_| s.uniform()).sum::<f64>() / n as f64;
         assert!((mean - 0.5).abs() < 0.005, "{mean}");
     }
 }

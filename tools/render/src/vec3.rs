@@ -39,10 +39,6 @@ impl Vec3 {
     pub fn normalize(self) -> Vec3 {
         self / self.length()
     }
-    /// Component-wise product (colour filtering).
-    pub fn mul(self, o: Vec3) -> Vec3 {
-        v3(self.x * o.x, self.y * o.y, self.z * o.z)
-    }
     pub fn max_component(self) -> f64 {
         self.x.max(self.y).max(self.z)
     }
@@ -98,6 +94,13 @@ impl Mul<f64> for Vec3 {
     type Output = Vec3;
     fn mul(self, s: f64) -> Vec3 {
         v3(self.x * s, self.y * s, self.z * s)
+    }
+}
+/// Component-wise product (colour filtering).
+impl Mul<Vec3> for Vec3 {
+    type Output = Vec3;
+    fn mul(self, o: Vec3) -> Vec3 {
+        v3(self.x * o.x, self.y * o.y, self.z * o.z)
     }
 }
 impl Div<f64> for Vec3 {

@@ -59,12 +59,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     st.spp = cli.reference_spp;
     st.seed = independent_seed(cli.seed);
     let t = Instant::now();
-    let reference = render_reference(
-        &scene,
-        &st,
-        ReconFilter::Box,
-        &progress_bar(0, "reference"),
-    )?;
+    let reference = render_reference(&scene, &st, ReconFilter::Box, &progress_bar(0, "reference"))?;
     let ref_name = format!("{name}_ref");
     let written = exr::write_image(&cli.out, &ref_name, &reference)?;
     println!(
