@@ -8,8 +8,10 @@
 pub mod commands;
 pub mod density;
 pub mod dump;
+pub mod imagespace;
 pub mod io;
 pub mod joint;
+pub mod methods;
 pub mod metrics;
 pub mod recon;
 pub mod report;

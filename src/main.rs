@@ -8,7 +8,9 @@ use clap::{Parser, Subcommand, ValueEnum};
 use pathdensity::commands::{filter, info};
 use pathdensity::density::{FilterParams, IndexKind};
 use pathdensity::dump::Order;
+use pathdensity::imagespace::bilateral::BilateralParams;
 use pathdensity::joint::JointSpace;
+use pathdensity::methods::Method;
 use pathdensity::recon::ReconFilter;
 use pathdensity::synth::SynthParams;
 
@@ -65,7 +67,7 @@ enum Command {
         /// Reference EXR (for an animation, REF.exr names REF_0000.exr, …).
         #[arg(long)]
         reference: Option<PathBuf>,
-        /// Exposure applied before the display metrics.
+        /// Exposure of the PNG previews and the display metrics.
         #[arg(long, default_value_t = 1.0)]
         exposure: f64,
         /// Worker threads (default: one per core).
@@ -79,6 +81,25 @@ enum Command {
         sigma_map: bool,
         #[arg(long, value_enum, default_value_t = IndexKind::Grid)]
         index: IndexKind,
+        /// Images besides mean and filtered (default: all).
+        #[arg(long, value_enum, value_delimiter = ',')]
+        methods: Option<Vec<Method>>,
+        /// α of the trimmed mean: ⌊α n⌋ samples dropped at each end.
+        #[arg(long, default_value_t = 0.1)]
+        alpha: f64,
+        /// Spatial σ of the bilateral filter, in pixels.
+        #[arg(long, default_value_t = 2.0)]
+        bilateral_sigma_s: f64,
+        /// Range σ of the bilateral filter, in CIELAB ΔE.
+        #[arg(long, default_value_t = 20.0)]
+        bilateral_sigma_r: f64,
+        /// Film row of the joint-density slice plot (default: the middle).
+        #[arg(long)]
+        slice_row: Option<u32>,
+        /// Skip the PNG previews, σ map, slice plot and report.html (faster:
+        /// no exact σ is needed).
+        #[arg(long)]
+        no_html: bool,
     },
     /// Write a synthetic dump (smooth field, fireflies, optional small light).
     Synth {
@@ -146,6 +167,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             decisions,
             sigma_map,
             index,
+            methods,
+            alpha,
+            bilateral_sigma_s,
+            bilateral_sigma_r,
+            slice_row,
+            no_html,
         } => {
             let mut o = filter::FilterOptions::new(dump, out);
             o.params = FilterParams {
@@ -168,6 +195,16 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             o.threads = threads;
             o.decisions = decisions;
             o.sigma_map = sigma_map;
+            if let Some(m) = methods {
+                o.methods = m;
+            }
+            o.alpha = alpha;
+            o.bilateral = BilateralParams {
+                sigma_s: bilateral_sigma_s,
+                sigma_r: bilateral_sigma_r,
+            };
+            o.slice_row = slice_row;
+            o.html = !no_html;
             let report = filter::filter(&o)?;
             print!("{}", report.summary());
         }

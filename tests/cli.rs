@@ -77,12 +77,25 @@ fn filter_writes_images_decisions_and_a_report() {
     assert_eq!(
         files(&out),
         [
+            "bilateral.exr",
+            "bilateral.png",
             "filtered.exr",
             "filtered.png",
+            "filtered_bilateral.exr",
+            "filtered_bilateral.png",
             "mean.exr",
             "mean.png",
+            "median.exr",
+            "median.png",
+            "median3.exr",
+            "median3.png",
+            "report.html",
             "report.json",
-            "sigma.exr"
+            "sigma.exr",
+            "sigma.png",
+            "slice.svg",
+            "trimmed.exr",
+            "trimmed.png"
         ]
     );
     let rep = report(&out);
@@ -158,12 +171,22 @@ fn an_animation_writes_every_image_per_frame() {
     };
     let dump = synth(dir.path(), "a.pds", &p);
     let out = dir.path().join("out");
-    run_ok(&["filter", &dump, "-o", out.to_str().unwrap()]);
-    let mut expected: Vec<String> = ["filtered", "mean"]
+    let o = out.to_str().unwrap();
+    run_ok(&[
+        "filter",
+        &dump,
+        "-o",
+        o,
+        "--methods",
+        "trimmed",
+        "--no-html",
+    ]);
+    let mut expected: Vec<String> = ["filtered", "mean", "trimmed"]
         .iter()
-        .flat_map(|n| (0..3).flat_map(move |f| ["exr", "png"].map(|e| format!("{n}_{f:04}.{e}"))))
+        .flat_map(|n| (0..3).map(move |f| format!("{n}_{f:04}.exr")))
         .collect();
     expected.push("report.json".into());
+    expected.sort();
     assert_eq!(files(&out), expected);
 }
 

@@ -1,5 +1,5 @@
-//! `pathdensity filter`: read a dump, run the path-density filter, write
-//! the images, the decisions and the report.
+//! `pathdensity filter`: read a dump, run the path-density filter and the
+//! baselines, write the images, the decisions and the report.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -8,10 +8,14 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 
 use crate::density::{self, Decision, FilterParams};
-use crate::dump::DumpReader;
+use crate::dump::{DumpReader, Header};
+use crate::imagespace::{self, bilateral::BilateralParams};
 use crate::io::{atomic, exr, png};
+use crate::methods::Method;
 use crate::metrics;
-use crate::recon::{self, ReconFilter};
+use crate::recon::{self, Image, ReconFilter, groups::PixelGroups, robust};
+use crate::report::html::{self, Assets};
+use crate::report::plots;
 use crate::report::{FilterReport, Timing};
 
 #[derive(Clone, Debug)]
@@ -21,15 +25,26 @@ pub struct FilterOptions {
     pub params: FilterParams,
     pub recon: ReconFilter,
     pub reference: Option<PathBuf>,
-    /// Exposure applied before display metrics.
+    /// Exposure of the PNG previews and the display metrics.
     pub exposure: f64,
     /// Worker threads; 0 means rayon's default (one per core).
     pub threads: usize,
     pub decisions: Option<PathBuf>,
     pub sigma_map: bool,
+    /// Extra images besides mean and filtered (SPEC §4 baselines).
+    pub methods: Vec<Method>,
+    /// α of the trimmed mean, in [0, 0.5).
+    pub alpha: f64,
+    pub bilateral: BilateralParams,
+    /// Write the PNG previews, σ map, slice plot and `report.html` (turns
+    /// the σ map on).
+    pub html: bool,
+    /// Film row of the slice plot (default: the middle row).
+    pub slice_row: Option<u32>,
 }
 
 impl FilterOptions {
+    /// Every method, the HTML report, the paper's parameters.
     pub fn new(dump: impl Into<PathBuf>, out_dir: impl Into<PathBuf>) -> FilterOptions {
         FilterOptions {
             dump: dump.into(),
@@ -41,7 +56,31 @@ impl FilterOptions {
             threads: 0,
             decisions: None,
             sigma_map: false,
+            methods: Method::ALL.to_vec(),
+            alpha: 0.1,
+            bilateral: BilateralParams::default(),
+            html: true,
+            slice_row: None,
         }
+    }
+
+    fn check(&self) -> Result<()> {
+        if self.params.k == 0 {
+            bail!("--k must be at least 1");
+        }
+        self.params.space.validate().map_err(anyhow::Error::msg)?;
+        if let ReconFilter::Gaussian { s, radius } = self.recon
+            && !(s > 0.0 && s.is_finite() && radius >= 0.0 && radius.is_finite())
+        {
+            bail!("the gaussian filter needs s > 0 and a finite radius ≥ 0");
+        }
+        if !(0.0..0.5).contains(&self.alpha) {
+            bail!("--alpha must lie in [0, 0.5), got {}", self.alpha);
+        }
+        if !(self.exposure > 0.0 && self.exposure.is_finite()) {
+            bail!("--exposure must be finite and positive");
+        }
+        self.bilateral.validate().map_err(anyhow::Error::msg)
     }
 }
 
@@ -56,21 +95,25 @@ fn prepare_out_dir(dir: &Path) -> Result<()> {
     Ok(())
 }
 
+/// The images of one run, by method, with the seconds each took.
+type Images = Vec<(Method, Image, f64)>;
+
 pub fn filter(opts: &FilterOptions) -> Result<FilterReport> {
     let t_start = Instant::now();
+    opts.check()?;
     let mut params = opts.params.clone();
-    params.exact_sigma |= opts.sigma_map;
-    if params.k == 0 {
-        bail!("--k must be at least 1");
-    }
-    params.space.validate().map_err(anyhow::Error::msg)?;
-    if let ReconFilter::Gaussian { s, radius } = opts.recon
-        && !(s > 0.0 && s.is_finite() && radius >= 0.0 && radius.is_finite())
-    {
-        bail!("the gaussian filter needs s > 0 and a finite radius ≥ 0");
-    }
+    params.exact_sigma |= opts.sigma_map || opts.html;
+    let methods = Method::with_core(&opts.methods);
     let dump = DumpReader::open(&opts.dump)?;
     let h = dump.header().clone();
+    if let Some(row) = opts.slice_row
+        && row >= h.height
+    {
+        bail!(
+            "--slice-row {row} is outside the film (height {})",
+            h.height
+        );
+    }
     let reference = opts
         .reference
         .as_ref()
@@ -87,10 +130,31 @@ pub fn filter(opts: &FilterOptions) -> Result<FilterReport> {
     let progress = super::progress_bar(records.len() as u64, "filter");
     let result = pool.install(|| density::run(records, &h, &params, &progress));
     progress.finish_and_clear();
+    let filter_seconds = result.streaming_seconds + result.final_seconds;
 
     let t_recon = Instant::now();
     let rec = recon::reconstruct(records, &h, opts.recon, |i| {
         Decision::accepted(result.decisions[i])
+    });
+    let mean_seconds = t_recon.elapsed().as_secs_f64();
+    let recon::Reconstruction {
+        mean,
+        filtered,
+        occupancy,
+        fallback_pixels,
+        empty_pixels,
+    } = rec;
+    let images = pool.install(|| {
+        let core = (mean, filtered, occupancy);
+        baselines(
+            records,
+            &h,
+            opts,
+            &methods,
+            core,
+            mean_seconds,
+            filter_seconds,
+        )
     });
     let sigma_img = result
         .sigma
@@ -98,20 +162,17 @@ pub fn filter(opts: &FilterOptions) -> Result<FilterReport> {
         .map(|s| recon::sigma_map(records, &h, s));
     let mut metrics_by_image = BTreeMap::new();
     if let Some(r) = &reference {
-        metrics_by_image.insert("mean".into(), metrics::compare(&rec.mean, r, opts.exposure));
-        metrics_by_image.insert(
-            "filtered".into(),
-            metrics::compare(&rec.filtered, r, opts.exposure),
-        );
+        for (m, img, _) in &images {
+            metrics_by_image.insert(m.name().into(), metrics::compare(img, r, opts.exposure));
+        }
     }
     let reconstruct_seconds = t_recon.elapsed().as_secs_f64();
 
     let t_write = Instant::now();
     let dir = &opts.out_dir;
     let mut outputs = Vec::new();
-    for (name, img) in [("filtered", &rec.filtered), ("mean", &rec.mean)] {
-        outputs.extend(exr::write_image(dir, name, img)?);
-        outputs.extend(png::write_previews(dir, name, img, opts.exposure)?);
+    for (m, img, _) in &images {
+        outputs.extend(exr::write_image(dir, m.name(), img)?);
     }
     if let Some(img) = &sigma_img {
         outputs.extend(exr::write_image(dir, "sigma", img)?);
@@ -119,16 +180,17 @@ pub fn filter(opts: &FilterOptions) -> Result<FilterReport> {
     if let Some(p) = &opts.decisions {
         atomic::write_bytes(p, &result.decisions)?;
     }
-    outputs.push("report.json".into());
+    let slice_row = opts.html.then(|| opts.slice_row.unwrap_or(h.height / 2));
+    let sigma_scale = sigma_img.as_ref().and_then(plots::sigma_scale);
     let mut report = FilterReport {
         dump: opts.dump.display().to_string(),
-        header: h,
+        header: h.clone(),
         parameters: params,
         recon: opts.recon,
         threads: pool.current_num_threads(),
         counts: result.counts,
-        fallback_pixels: rec.fallback_pixels,
-        empty_pixels: rec.empty_pixels,
+        fallback_pixels,
+        empty_pixels,
         timing: Timing {
             open_seconds,
             streaming_seconds: result.streaming_seconds,
@@ -139,11 +201,129 @@ pub fn filter(opts: &FilterOptions) -> Result<FilterReport> {
         },
         metrics: metrics_by_image,
         reference: opts.reference.as_ref().map(|p| p.display().to_string()),
-        outputs,
+        method_seconds: images
+            .iter()
+            .map(|(m, _, s)| (m.name().to_string(), *s))
+            .collect(),
+        alpha: opts.alpha,
+        bilateral: opts.bilateral,
+        exposure: opts.exposure,
+        sigma_scale,
+        slice_row,
+        outputs: Vec::new(),
     };
+    if opts.html {
+        let mut assets = Assets {
+            images: Vec::new(),
+            reference: None,
+            sigma: None,
+            slice_svg: None,
+        };
+        let previews = |name: &str, frames: Vec<image::RgbImage>, outputs: &mut Vec<String>| {
+            frames
+                .iter()
+                .enumerate()
+                .map(|(f, img)| {
+                    let file = exr::frame_file_name(name, f, frames.len(), "png");
+                    let bytes = png::encode(img)?;
+                    atomic::write_bytes(&dir.join(&file), &bytes)?;
+                    outputs.push(file);
+                    Ok(bytes)
+                })
+                .collect::<Result<Vec<Vec<u8>>>>()
+        };
+        let tone = |img: &Image| -> Vec<image::RgbImage> {
+            (0..img.frames)
+                .map(|f| png::tone_map(img, f, opts.exposure))
+                .collect()
+        };
+        if let Some(r) = &reference {
+            assets.reference = Some(previews("reference", tone(r), &mut outputs)?);
+        }
+        for (m, img, _) in &images {
+            let frames = previews(m.name(), tone(img), &mut outputs)?;
+            assets.images.push((m.name().to_string(), frames));
+        }
+        if let (Some(img), Some(scale)) = (&sigma_img, sigma_scale) {
+            let frames = (0..img.frames)
+                .map(|f| plots::sigma_png(img, f, scale))
+                .collect();
+            assets.sigma = Some((previews("sigma", frames, &mut outputs)?, scale));
+        }
+        if let Some(row) = slice_row {
+            let svg = plots::slice_svg(records, &h, &result.decisions, row)
+                .map_err(|e| anyhow::anyhow!("cannot draw the slice plot: {e}"))?;
+            atomic::write_bytes(&dir.join("slice.svg"), svg.as_bytes())?;
+            outputs.push("slice.svg".into());
+            assets.slice_svg = Some(svg);
+        }
+        outputs.push("report.html".into());
+        outputs.push("report.json".into());
+        report.outputs = outputs;
+        atomic::write_bytes(
+            &dir.join("report.html"),
+            html::render(&report, &assets).as_bytes(),
+        )?;
+    } else {
+        outputs.push("report.json".into());
+        report.outputs = outputs;
+    }
     report.timing.write_seconds = t_write.elapsed().as_secs_f64();
     report.timing.total_seconds = t_start.elapsed().as_secs_f64();
     let json = serde_json::to_vec_pretty(&report).expect("the report serialises");
     atomic::write_bytes(&dir.join("report.json"), &json)?;
     Ok(report)
+}
+
+/// Every requested image, with the wall time to make it from the dump
+/// (the passes it shares with other images included).
+fn baselines(
+    records: &[crate::dump::Record],
+    h: &Header,
+    opts: &FilterOptions,
+    methods: &[Method],
+    (mean, filtered, occupancy): (Image, Image, Vec<u32>),
+    mean_seconds: f64,
+    filter_seconds: f64,
+) -> Images {
+    let mut list = Vec::new();
+    let white = opts.params.space.white;
+    let wants = |m| methods.contains(&m);
+    if wants(Method::Median) || wants(Method::Trimmed) {
+        let t = Instant::now();
+        let groups = PixelGroups::new(records, h);
+        let r = robust::robust_images(&groups, h, opts.alpha);
+        let secs = t.elapsed().as_secs_f64();
+        for (m, img) in [(Method::Median, r.median), (Method::Trimmed, r.trimmed)] {
+            if wants(m) {
+                list.push((m, img, secs));
+            }
+        }
+    }
+    let timed = |f: &dyn Fn() -> Image| {
+        let t = Instant::now();
+        let img = f();
+        (img, t.elapsed().as_secs_f64())
+    };
+    if wants(Method::Bilateral) {
+        let (img, s) = timed(&|| imagespace::bilateral(&mean, &occupancy, opts.bilateral, white));
+        list.push((Method::Bilateral, img, mean_seconds + s));
+    }
+    if wants(Method::Median3) {
+        let (img, s) = timed(&|| imagespace::median3(&mean, &occupancy));
+        list.push((Method::Median3, img, mean_seconds + s));
+    }
+    if wants(Method::FilteredBilateral) {
+        let (img, s) =
+            timed(&|| imagespace::bilateral(&filtered, &occupancy, opts.bilateral, white));
+        list.push((
+            Method::FilteredBilateral,
+            img,
+            filter_seconds + mean_seconds + s,
+        ));
+    }
+    list.push((Method::Mean, mean, mean_seconds));
+    list.push((Method::Filtered, filtered, filter_seconds + mean_seconds));
+    list.sort_by_key(|e| e.0);
+    list
 }

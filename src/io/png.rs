@@ -6,7 +6,6 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 
-use super::atomic::AtomicFile;
 use crate::metrics::display;
 use crate::recon::Image;
 
@@ -19,28 +18,16 @@ pub fn tone_map(img: &Image, frame: usize, exposure: f64) -> image::RgbImage {
     })
 }
 
+/// An 8-bit image encoded as PNG.
+pub fn encode(img: &image::RgbImage) -> Result<Vec<u8>> {
+    let mut out = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut out, image::ImageFormat::Png)
+        .context("cannot encode PNG")?;
+    Ok(out.into_inner())
+}
+
 /// Writes an 8-bit image as PNG, atomically.
 pub fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
-    let f = AtomicFile::new(path);
-    img.save_with_format(f.tmp_path(), image::ImageFormat::Png)
-        .with_context(|| format!("{}: cannot write PNG", path.display()))?;
-    f.commit()
-        .with_context(|| format!("{}: cannot rename into place", path.display()))
-}
-
-/// Writes the tone-mapped preview of one frame.
-pub fn write_preview(path: &Path, img: &Image, frame: usize, exposure: f64) -> Result<()> {
-    write_png(path, &tone_map(img, frame, exposure))
-}
-
-/// Writes `NAME.png` (a still) or `NAME_0000.png`, … (an animation) into
-/// `dir`, returning the file names.
-pub fn write_previews(dir: &Path, name: &str, img: &Image, exposure: f64) -> Result<Vec<String>> {
-    (0..img.frames)
-        .map(|f| {
-            let file = super::exr::frame_file_name(name, f, img.frames, "png");
-            write_preview(&dir.join(&file), img, f, exposure)?;
-            Ok(file)
-        })
-        .collect()
+    let bytes = encode(img).with_context(|| path.display().to_string())?;
+    super::atomic::write_bytes(path, &bytes)
 }

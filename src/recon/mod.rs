@@ -2,7 +2,9 @@
 //! reconstruction filter W, accumulated in f64 in file order so that the
 //! result does not depend on the thread count.
 
+pub mod groups;
 pub mod median;
+pub mod robust;
 
 use crate::dump::{Header, Record, Validity};
 

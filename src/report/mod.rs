@@ -4,8 +4,15 @@ use std::collections::BTreeMap;
 
 use crate::density::{FilterCounts, FilterParams};
 use crate::dump::Header;
+use crate::imagespace::bilateral::BilateralParams;
+use crate::methods::Method;
 use crate::metrics::ImageMetrics;
 use crate::recon::ReconFilter;
+
+pub mod html;
+pub mod plots;
+
+use plots::SigmaScale;
 
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Timing {
@@ -32,6 +39,18 @@ pub struct FilterReport {
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub metrics: BTreeMap<String, ImageMetrics>,
     pub reference: Option<String>,
+    /// Wall time to produce each image from the dump, passes it shares
+    /// with other images included (see README).
+    pub method_seconds: BTreeMap<String, f64>,
+    /// α of the trimmed mean.
+    pub alpha: f64,
+    pub bilateral: BilateralParams,
+    /// Exposure of the PNG previews and of RMS_display.
+    pub exposure: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma_scale: Option<SigmaScale>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub slice_row: Option<u32>,
     pub outputs: Vec<String>,
 }
 
@@ -70,19 +89,54 @@ impl FilterReport {
             rate,
             self.threads
         );
-        if !self.metrics.is_empty() {
-            s += &format!(
-                "  {:<10}{:>12}{:>14}{:>12}{:>10}\n",
-                "image", "RMS", "RMS display", "relMSE", "energy"
-            );
-            for (name, m) in &self.metrics {
-                let m = &m.pooled;
-                s += &format!(
-                    "  {:<10}{:>12.6}{:>14.6}{:>12.6}{:>10.4}\n",
-                    name, m.rms, m.rms_display, m.rel_mse, m.energy_ratio
-                );
+        let best = self.best_rms();
+        s += &format!(
+            "  {:<20}{:>12}{:>14}{:>12}{:>10}{:>10}\n",
+            "image", "RMS", "RMS display", "relMSE", "energy", "seconds"
+        );
+        for (name, seconds, m) in self.method_rows() {
+            let mark = if best.as_deref() == Some(name.as_str()) {
+                "*"
+            } else {
+                " "
+            };
+            match m {
+                Some(m) => {
+                    let m = &m.pooled;
+                    s += &format!(
+                        "{mark} {:<20}{:>12.6}{:>14.6}{:>12.6}{:>10.4}{:>10.3}\n",
+                        name, m.rms, m.rms_display, m.rel_mse, m.energy_ratio, seconds
+                    );
+                }
+                None => s += &format!("  {:<20}{:>58.3}\n", name, seconds),
             }
         }
+        if best.is_some() {
+            s += "  (* lowest RMS)\n";
+        }
         s
+    }
+}
+
+impl FilterReport {
+    /// (image name, seconds, metrics) for every image written, in the
+    /// canonical method order.
+    pub fn method_rows(&self) -> Vec<(String, f64, Option<&ImageMetrics>)> {
+        Method::ALL
+            .iter()
+            .map(|m| m.name())
+            .filter_map(|n| {
+                let secs = *self.method_seconds.get(n)?;
+                Some((n.to_string(), secs, self.metrics.get(n)))
+            })
+            .collect()
+    }
+
+    /// The image with the lowest linear RMS, if there is a reference.
+    pub fn best_rms(&self) -> Option<String> {
+        self.metrics
+            .iter()
+            .min_by(|a, b| a.1.pooled.rms.total_cmp(&b.1.pooled.rms))
+            .map(|(n, _)| n.clone())
     }
 }

@@ -1,0 +1,10 @@
+//! Image-space filters applied to reconstructed images (SPEC §4): the
+//! bilateral filter and the 3 × 3 median. They work frame by frame, and
+//! pixels that contain no valid sample (`occupancy` 0) are neither used as
+//! neighbours nor written: SPEC §4 keeps them 0 in every image.
+
+pub mod bilateral;
+pub mod median3;
+
+pub use bilateral::bilateral;
+pub use median3::median3;

@@ -1,0 +1,220 @@
+//! `report.html`: one self-contained page (images inlined as data URIs, no
+//! network) with every method beside the reference, the metric table, a
+//! magnifier that follows the pointer on all images at once, the σ map and
+//! the slice plot. The page sets `data-status` on `<body>` to `ok` once
+//! every image has decoded, or to `error: …` — the browser test reads it.
+
+use base64::Engine;
+
+use super::FilterReport;
+use super::plots::SigmaScale;
+
+/// The pictures a report shows; each image has one PNG per frame.
+pub struct Assets {
+    /// (name, PNG bytes per frame), in display order.
+    pub images: Vec<(String, Vec<Vec<u8>>)>,
+    pub reference: Option<Vec<Vec<u8>>>,
+    pub sigma: Option<(Vec<Vec<u8>>, SigmaScale)>,
+    pub slice_svg: Option<String>,
+}
+
+fn data_uri(png: &[u8]) -> String {
+    format!(
+        "data:image/png;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(png)
+    )
+}
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// A JS array literal of the frames' data URIs.
+fn frames_array(frames: &[Vec<u8>]) -> String {
+    let uris: Vec<String> = frames
+        .iter()
+        .map(|f| format!("\"{}\"", data_uri(f)))
+        .collect();
+    format!("[{}]", uris.join(","))
+}
+
+const STYLE: &str = r#"
+body { font: 14px/1.4 system-ui, sans-serif; margin: 1.5em; color: #222; }
+h1 { font-size: 1.3em; } h2 { font-size: 1.1em; margin-top: 1.5em; }
+table { border-collapse: collapse; } td, th { padding: 2px 10px; text-align: right; }
+th:first-child, td:first-child { text-align: left; }
+tr.best td { font-weight: bold; } thead th { border-bottom: 1px solid #888; }
+.grid { display: flex; flex-wrap: wrap; gap: 12px; }
+figure { margin: 0; } figcaption { text-align: center; font-size: 12px; }
+.view { position: relative; cursor: crosshair; }
+.view img { display: block; width: var(--w); image-rendering: pixelated; }
+.loupe { position: absolute; width: 120px; height: 120px; border: 2px solid #fff;
+  box-shadow: 0 0 0 1px #000; border-radius: 4px; pointer-events: none; display: none;
+  background-repeat: no-repeat; image-rendering: pixelated; }
+.bar { display: flex; justify-content: space-between; width: var(--w); font-size: 12px; }
+"#;
+
+const SCRIPT: &str = r#"
+const status = (s) => { if (!document.body.dataset.status || s.startsWith('error')) document.body.dataset.status = s; };
+window.addEventListener('error', (e) => status('error: ' + e.message));
+const consoleError = console.error;
+console.error = (...args) => { status('error: console: ' + args.join(' ')); consoleError(...args); };
+const ZOOM = 8;
+function setFrame(f) {
+  document.querySelectorAll('img[data-name]').forEach((img) => {
+    const frames = FRAMES[img.dataset.name];
+    img.src = frames[Math.min(f, frames.length - 1)];
+  });
+  document.getElementById('frame-label').textContent = f;
+}
+function move(e) {
+  const r = e.currentTarget.getBoundingClientRect();
+  const u = (e.clientX - r.left) / r.width, v = (e.clientY - r.top) / r.height;
+  document.querySelectorAll('.view').forEach((view) => {
+    const img = view.querySelector('img'), loupe = view.querySelector('.loupe');
+    const w = img.clientWidth, h = img.clientHeight;
+    loupe.style.display = 'block';
+    loupe.style.left = (u * w - 60) + 'px';
+    loupe.style.top = (v * h - 60) + 'px';
+    loupe.style.backgroundImage = 'url(' + img.src + ')';
+    loupe.style.backgroundSize = (w * ZOOM) + 'px ' + (h * ZOOM) + 'px';
+    loupe.style.backgroundPosition = (60 - u * w * ZOOM) + 'px ' + (60 - v * h * ZOOM) + 'px';
+  });
+}
+function leave() { document.querySelectorAll('.loupe').forEach((l) => l.style.display = 'none'); }
+document.querySelectorAll('.view').forEach((v) => { v.addEventListener('mousemove', move); v.addEventListener('mouseleave', leave); });
+const slider = document.getElementById('frame');
+if (slider) slider.addEventListener('input', () => setFrame(+slider.value));
+setFrame(0);
+Promise.all([...document.images].map((img) => img.decode()))
+  .then(() => status([...document.images].every((i) => i.naturalWidth > 0) ? 'ok' : 'error: empty image'))
+  .catch((e) => status('error: image failed to decode: ' + e));
+"#;
+
+pub fn render(report: &FilterReport, assets: &Assets) -> String {
+    let h = &report.header;
+    // Small films are shown enlarged, large ones at most 512 px wide.
+    let scale = (512.0 / h.width as f64).clamp(0.25, 4.0).floor().max(1.0);
+    let css_w = format!("{}px", (h.width as f64 * scale).min(512.0).round());
+    let mut frames_js = Vec::new();
+    let mut figures = String::new();
+    let mut add = |name: &str, caption: &str, frames: &[Vec<u8>], extra: &str| {
+        frames_js.push(format!("\"{}\": {}", name, frames_array(frames)));
+        figures += &format!(
+            "<figure><div class=\"view\"><img data-name=\"{n}\" alt=\"{n}\"><div class=\"loupe\"></div></div>{extra}<figcaption>{c}</figcaption></figure>\n",
+            n = escape(name),
+            c = escape(caption)
+        );
+    };
+    if let Some(r) = &assets.reference {
+        add("reference", "reference", r, "");
+    }
+    for (name, frames) in &assets.images {
+        let caption = match report.metrics.get(name) {
+            Some(m) => format!(
+                "{name}: RMS {:.4}, RMS display {:.4}",
+                m.pooled.rms, m.pooled.rms_display
+            ),
+            None => name.clone(),
+        };
+        add(name, &caption, frames, "");
+    }
+    if let Some((frames, s)) = &assets.sigma {
+        let bar = format!(
+            "<div class=\"bar\"><span>σ {:.3} (red)</span><span>log scale</span><span>σ {:.3} (blue)</span></div>",
+            s.low, s.high
+        );
+        add(
+            "sigma",
+            "σ map: mean σ of each pixel's samples",
+            frames,
+            &bar,
+        );
+    }
+    let slider = if h.frames > 1 {
+        format!(
+            "<p>frame <input id=\"frame\" type=\"range\" min=\"0\" max=\"{}\" value=\"0\"> <span id=\"frame-label\">0</span></p>",
+            h.frames - 1
+        )
+    } else {
+        "<span id=\"frame-label\" hidden>0</span>".to_string()
+    };
+    let slice = assets
+        .slice_svg
+        .as_ref()
+        .map(|s| format!("<h2>Joint-density slice (the paper's Figure 5)</h2>\n{s}"))
+        .unwrap_or_default();
+    format!(
+        r#"<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<title>pathdensity report: {title}</title>
+<style>:root {{ --w: {css_w}; }} {STYLE}</style></head>
+<body>
+<h1>pathdensity report: {title}</h1>
+<p>{w} × {hh} × {frames} frame(s), {count} samples ({scene}); k = {k}, σ_image = {si}, σ_color = {sc}, white = {white}; previews at exposure {exposure}, sRGB. Move the pointer over any image to magnify all of them at the same place.</p>
+{table}
+{slider}
+<div class="grid">
+{figures}</div>
+{slice}
+<script>const FRAMES = {{{frames_js}}};
+{SCRIPT}</script>
+</body></html>
+"#,
+        title = escape(&report.dump),
+        w = h.width,
+        hh = h.height,
+        frames = h.frames,
+        count = report.counts.records,
+        scene = escape(&h.scene),
+        k = report.parameters.k,
+        si = report.parameters.space.sigma_image,
+        sc = report.parameters.space.sigma_color,
+        white = report.parameters.space.white,
+        exposure = report.exposure,
+        table = metric_table(report),
+        frames_js = frames_js.join(",\n"),
+    )
+}
+
+fn metric_table(report: &FilterReport) -> String {
+    let rows = report.method_rows();
+    if rows.is_empty() {
+        return String::new();
+    }
+    let best = report.best_rms();
+    let mut t = String::from(
+        "<table><thead><tr><th>method</th><th>RMS</th><th>RMS display</th><th>relMSE</th><th>energy</th><th>energy R / G / B</th><th>seconds</th></tr></thead><tbody>\n",
+    );
+    for (name, seconds, m) in rows {
+        let cells = match m {
+            Some(m) => {
+                let p = &m.pooled;
+                format!(
+                    "<td>{:.5}</td><td>{:.5}</td><td>{:.5}</td><td>{:.4}</td><td>{:.3} / {:.3} / {:.3}</td>",
+                    p.rms,
+                    p.rms_display,
+                    p.rel_mse,
+                    p.energy_ratio,
+                    p.energy_ratio_rgb[0],
+                    p.energy_ratio_rgb[1],
+                    p.energy_ratio_rgb[2]
+                )
+            }
+            None => "<td colspan=\"5\">no reference</td>".into(),
+        };
+        let class = if best.as_deref() == Some(name.as_str()) {
+            " class=\"best\""
+        } else {
+            ""
+        };
+        t += &format!(
+            "<tr{class}><td>{}</td>{cells}<td>{seconds:.3}</td></tr>\n",
+            escape(&name)
+        );
+    }
+    t + "</tbody></table>"
+}
