@@ -146,13 +146,21 @@ fn every_output_is_bit_identical_for_1_2_and_8_threads() {
                 "--decisions",
                 dec.to_str().unwrap(),
             ]);
-            let mut v: Vec<Vec<u8>> = ["filtered.exr", "mean.exr", "sigma.exr"]
+            // Every image, preview and plot; the reports hold wall times,
+            // so only their counts and metrics are compared.
+            let names: Vec<String> = files(&out)
+                .into_iter()
+                .filter(|f| !f.starts_with("report."))
+                .collect();
+            assert_eq!(names.len(), 17);
+            let mut v: Vec<Vec<u8>> = names
                 .iter()
                 .map(|f| std::fs::read(out.join(f)).unwrap())
                 .collect();
             v.push(std::fs::read(dec).unwrap());
             let r = report(&out);
             v.push(r["counts"].to_string().into_bytes());
+            v.push(r["metrics"].to_string().into_bytes());
             v
         })
         .collect();

@@ -1,0 +1,152 @@
+//! report.html in a real headless browser (Debian's chromium): the page
+//! loads from the file system without console errors, every image decodes
+//! (the page's own check sets `data-status="ok"` on `<body>`), and a
+//! screenshot is taken.
+//!
+//! Without a browser the test is skipped with a message, unless
+//! `PATHDENSITY_REQUIRE_BROWSER` is set (CI sets it and installs chromium).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use pathdensity::commands::filter::{FilterOptions, filter};
+use pathdensity::io::exr;
+use pathdensity::recon::{Film, Image, ReconFilter};
+use pathdensity::synth::SynthParams;
+
+fn browser() -> Option<PathBuf> {
+    if let Ok(p) = std::env::var("PATHDENSITY_BROWSER") {
+        return Some(PathBuf::from(p));
+    }
+    let path = std::env::var_os("PATH")?;
+    ["chromium", "chromium-browser", "google-chrome"]
+        .iter()
+        .flat_map(|b| std::env::split_paths(&path).map(move |d| d.join(b)))
+        .find(|p| p.is_file())
+}
+
+/// Runs the browser headless on `page` with `args`; returns (stdout, stderr).
+fn headless(browser: &Path, page: &Path, args: &[&str]) -> (String, String) {
+    let url = format!("file://{}", page.canonicalize().unwrap().display());
+    let out = Command::new("timeout")
+        .arg("120")
+        .arg(browser)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--no-first-run",
+            "--enable-logging=stderr",
+            "--virtual-time-budget=10000",
+            "--window-size=1400,1600",
+        ])
+        .args(args)
+        .arg(url)
+        .output()
+        .expect("the browser runs");
+    (
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// The mean image of a dense synthetic dump, as a reference.
+fn reference(p: &SynthParams) -> Image {
+    let h = p.header();
+    let mut film = Film::new(&h, ReconFilter::Box);
+    let mut occ = vec![0u32; h.pixels() * h.frames as usize];
+    for r in p.records() {
+        film.splat(&r);
+        occ[r.pixel_index(&h)] += 1;
+    }
+    film.resolve(&occ)
+}
+
+fn check_report(browser: &Path, frames: u32) {
+    let dir = tempfile::tempdir().unwrap();
+    let p = SynthParams {
+        width: 40,
+        height: 24,
+        frames,
+        spp: 8,
+        firefly_fraction: 0.02,
+        light: Some((5, 5, 3, 20.0)),
+        ..SynthParams::default()
+    };
+    let dump = dir.path().join("d.pds");
+    p.write(&dump).unwrap();
+    let dense = SynthParams {
+        spp: 128,
+        firefly_fraction: 0.0,
+        seed: 99,
+        ..p.clone()
+    };
+    exr::write_image(dir.path(), "ref", &reference(&dense)).unwrap();
+    let out = dir.path().join("out");
+    let mut o = FilterOptions::new(&dump, &out);
+    o.reference = Some(dir.path().join("ref.exr"));
+    filter(&o).unwrap();
+    let page = out.join("report.html");
+    let html = std::fs::read_to_string(&page).unwrap();
+    // Nothing fetched: no remote src, href or url() (SVG's xmlns is a name).
+    for pat in ["src=\"http", "href=\"http", "url(http", "@import"] {
+        assert!(
+            !html.contains(pat),
+            "the page references the network: {pat}"
+        );
+    }
+
+    let (dom, err) = headless(browser, &page, &["--dump-dom"]);
+    assert!(
+        dom.contains("data-status=\"ok\""),
+        "page status: {dom:.2000}\n{err}"
+    );
+    for line in err.lines() {
+        assert!(
+            !(line.contains("CONSOLE") && line.contains("rror")) && !line.contains("Uncaught"),
+            "console error: {line}"
+        );
+    }
+    // Every method and the reference are on the page.
+    for name in [
+        "reference",
+        "mean",
+        "filtered",
+        "median",
+        "trimmed",
+        "bilateral",
+        "median3",
+    ] {
+        assert!(
+            dom.contains(&format!("data-name=\"{name}\"")),
+            "{name} missing"
+        );
+    }
+    assert!(dom.contains("<svg"), "slice plot inlined");
+
+    let shot = out.join("screenshot.png");
+    let arg = format!("--screenshot={}", shot.display());
+    headless(browser, &page, &[&arg]);
+    let img = image::open(&shot)
+        .expect("a screenshot was written")
+        .to_rgb8();
+    assert_eq!(img.dimensions(), (1400, 1600));
+    let distinct: std::collections::HashSet<[u8; 3]> = img.pixels().map(|p| p.0).collect();
+    assert!(distinct.len() > 100, "the screenshot shows images");
+    if let Ok(keep) = std::env::var("PATHDENSITY_SCREENSHOT_DIR") {
+        let _ = std::fs::copy(&shot, Path::new(&keep).join(format!("report_{frames}.png")));
+    }
+}
+
+#[test]
+fn report_html_loads_without_errors_in_a_headless_browser() {
+    let Some(b) = browser() else {
+        if std::env::var_os("PATHDENSITY_REQUIRE_BROWSER").is_some() {
+            panic!("no browser found, and PATHDENSITY_REQUIRE_BROWSER is set");
+        }
+        eprintln!("SKIPPED: no chromium on PATH (set PATHDENSITY_BROWSER)");
+        return;
+    };
+    check_report(&b, 1);
+    check_report(&b, 3);
+}
