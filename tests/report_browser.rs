@@ -102,8 +102,9 @@ fn check_report(browser: &Path, frames: u32) {
         "page status: {dom:.2000}\n{err}"
     );
     for line in err.lines() {
+        let console_error = line.contains("CONSOLE") && line.contains("rror");
         assert!(
-            !(line.contains("CONSOLE") && line.contains("rror")) && !line.contains("Uncaught"),
+            !console_error && !line.contains("Uncaught"),
             "console error: {line}"
         );
     }
