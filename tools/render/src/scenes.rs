@@ -91,7 +91,25 @@ impl SceneName {
                 Scene::new(self.as_str(), camera, prims)
             }
             SceneName::TwoLights => {
-                prims.push(ceiling_light(1.2, v3(1.1, 0.9, 0.35)));
+                // The large lamp is a 3 × 3 panel fixture, so next-event
+                // estimation picks the blue light for only 1 sample in 10:
+                // each pixel sees the blue light in a few samples, which a
+                // per-pixel trimmed mean drops, while in joint space they
+                // form a dense population (the paper's Figure 4).
+                for i in 0..3 {
+                    for j in 0..3 {
+                        let (x, z) = (-0.6 + 0.4 * i as f64, -0.6 + 0.4 * j as f64);
+                        prims.push(Primitive {
+                            shape: Shape::quad(
+                                v3(x + 0.01, 1.98, z + 0.01),
+                                v3(0.38, 0.0, 0.0),
+                                v3(0.0, 0.0, 0.38),
+                            ),
+                            material: Material::Black,
+                            emission: v3(1.1, 0.9, 0.35),
+                        });
+                    }
+                }
                 prims.push(Primitive {
                     shape: Shape::sphere(v3(0.6, 1.25, -0.55), 0.03),
                     material: Material::Black,

@@ -231,3 +231,28 @@ fn the_filter_lowers_the_glossy_rooms_rms_at_16_spp() {
     assert!(filtered.rms < 0.95 * mean.rms);
     assert!(filtered.rms_display < mean.rms_display);
 }
+
+#[test]
+fn two_lights_trimmed_mean_loses_the_blue_light_and_the_filter_keeps_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let st = settings(64, 16, Order::PixelMajor);
+    let dump = dir.path().join("t.pds");
+    render(SceneName::TwoLights, &st, &dump, 2);
+    let reference = reference(SceneName::TwoLights, 64, 512);
+    exr::write_image(dir.path(), "ref", &reference).unwrap();
+    let mut o = FilterOptions::new(&dump, dir.path().join("out"));
+    o.reference = Some(dir.path().join("ref.exr"));
+    o.html = false;
+    let report = filter(&o).unwrap();
+    let blue = |m: &str| report.metrics[m].pooled.energy_ratio_rgb[2];
+    eprintln!(
+        "blue energy: mean {:.3} filtered {:.3} trimmed {:.3} median {:.3}",
+        blue("mean"),
+        blue("filtered"),
+        blue("trimmed"),
+        blue("median")
+    );
+    assert!(blue("trimmed") < blue("filtered") - 0.08);
+    assert!(blue("median") < blue("trimmed"));
+    assert!(blue("filtered") > 0.88);
+}
