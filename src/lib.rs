@@ -14,5 +14,6 @@ pub mod joint;
 pub mod methods;
 pub mod metrics;
 pub mod recon;
+pub mod regress;
 pub mod report;
 pub mod synth;

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
 
-use pathdensity::commands::{filter, info};
+use pathdensity::commands::{filter, info, regress};
 use pathdensity::density::{FilterParams, IndexKind};
 use pathdensity::dump::Order;
 use pathdensity::imagespace::bilateral::BilateralParams;
@@ -100,6 +100,15 @@ enum Command {
         /// no exact σ is needed).
         #[arg(long)]
         no_html: bool,
+    },
+    /// Re-run every regression fixture and compare with its expectations.
+    Regress {
+        /// The directory of fixtures (each a directory with manifest.json).
+        #[arg(default_value = "fixtures")]
+        dir: PathBuf,
+        /// Rewrite the expectations after an intended change.
+        #[arg(long)]
+        bless: bool,
     },
     /// Write a synthetic dump (smooth field, fireflies, optional small light).
     Synth {
@@ -207,6 +216,17 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             o.html = !no_html;
             let report = filter::filter(&o)?;
             print!("{}", report.summary());
+        }
+        Command::Regress { dir, bless } => {
+            let o = regress::regress(&dir, bless)?;
+            print!("{}", o.text);
+            if o.drifted > 0 {
+                anyhow::bail!(
+                    "{} of {} fixtures drifted (after an intended change: regress --bless)",
+                    o.drifted,
+                    o.fixtures
+                );
+            }
         }
         Command::Synth {
             out,

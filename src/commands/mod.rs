@@ -2,6 +2,7 @@
 
 pub mod filter;
 pub mod info;
+pub mod regress;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;

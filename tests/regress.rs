@@ -1,0 +1,66 @@
+//! The regression fixtures: every stored expectation still holds, a drift
+//! is reported readably with a non-zero exit, and `--bless` rewrites it.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use pathdensity::regress;
+
+fn fixtures() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures")
+}
+
+#[test]
+fn every_fixture_matches_its_expectations() {
+    let all = regress::find(&fixtures()).unwrap();
+    assert!(all.len() >= 8, "{all:?}");
+    for dir in all {
+        let drift = regress::check(&dir).unwrap();
+        assert!(drift.is_empty(), "{}: {drift:#?}", dir.display());
+    }
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &to.join(e.file_name()));
+        } else {
+            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        }
+    }
+}
+
+#[test]
+fn a_drift_is_reported_and_bless_rewrites_the_expectations() {
+    let root = tempfile::tempdir().unwrap();
+    let dir = root.path().join("glossy-room");
+    copy_dir(&fixtures().join("glossy-room"), &dir);
+    // An unintended change: the configuration now says k = 20.
+    let manifest = dir.join("manifest.json");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    let changed = text.replacen("\"k\": 10", "\"k\": 20", 1);
+    assert_ne!(text, changed);
+    std::fs::write(&manifest, changed).unwrap();
+
+    let out = Command::new(env!("CARGO_BIN_EXE_pathdensity"))
+        .args(["regress", root.path().to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stdout.contains("glossy-room: DRIFT"), "{stdout}");
+    assert!(stdout.contains("counts: expected"), "{stdout}");
+    assert!(stdout.contains("filtered: RMS"), "{stdout}");
+    assert!(stdout.contains("filtered.exr:"), "{stdout}");
+    assert!(stderr.contains("1 of 1 fixtures drifted"), "{stderr}");
+
+    let bless = Command::new(env!("CARGO_BIN_EXE_pathdensity"))
+        .args(["regress", root.path().to_str().unwrap(), "--bless"])
+        .output()
+        .unwrap();
+    assert!(bless.status.success());
+    assert!(regress::check(&dir).unwrap().is_empty());
+}
