@@ -1,0 +1,143 @@
+//! Nothing is lost: a `filter` or `render` killed mid-run (SIGKILL, SIGINT)
+//! leaves no partial file under a final name, and the previous outputs in
+//! OUTDIR stay readable. Also: special files are refused as dumps.
+
+mod common;
+
+use std::path::Path;
+use std::process::Command;
+use std::time::Duration;
+
+use pathdensity::dump::DumpReader;
+use pathdensity::io::exr::read_rgb;
+use pathdensity::synth::SynthParams;
+
+/// Every file under a final name in `dir` is complete: images decode,
+/// JSON parses. Temporary files (`.NAME.tmp-PID`) are ignored.
+fn every_final_file_is_complete(dir: &Path) -> usize {
+    let mut n = 0;
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        let name = p.file_name().unwrap().to_string_lossy().into_owned();
+        if name.starts_with('.') {
+            continue;
+        }
+        match p.extension().and_then(|x| x.to_str()) {
+            Some("exr") => {
+                read_rgb(&p).unwrap_or_else(|e| panic!("{name}: {e:#}"));
+            }
+            Some("png") => {
+                image::open(&p).unwrap_or_else(|e| panic!("{name}: {e}"));
+            }
+            Some("json") => {
+                let t = std::fs::read_to_string(&p).unwrap();
+                serde_json::from_str::<serde_json::Value>(&t)
+                    .unwrap_or_else(|e| panic!("{name}: {e}"));
+            }
+            Some("html") | Some("svg") => {
+                let t = std::fs::read_to_string(&p).unwrap();
+                assert!(t.trim_end().ends_with('>'), "{name} is cut short");
+            }
+            _ => {}
+        }
+        n += 1;
+    }
+    n
+}
+
+fn kill(child: &mut std::process::Child, signal: &str) {
+    Command::new("kill")
+        .args([signal, &child.id().to_string()])
+        .status()
+        .unwrap();
+    let _ = child.wait();
+}
+
+#[test]
+fn a_killed_filter_leaves_complete_files_and_the_previous_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let small = dir.path().join("small.pds");
+    SynthParams {
+        width: 32,
+        height: 32,
+        spp: 8,
+        ..SynthParams::default()
+    }
+    .write(&small)
+    .unwrap();
+    let bin = env!("CARGO_BIN_EXE_pathdensity");
+    let ok = Command::new(bin)
+        .args([
+            "filter",
+            small.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(ok.status.success());
+    let before = every_final_file_is_complete(&out);
+    assert!(before >= 19);
+
+    let big = dir.path().join("big.pds");
+    SynthParams::default().write(&big).unwrap();
+    for (signal, ms) in [
+        ("-KILL", 300),
+        ("-INT", 900),
+        ("-KILL", 1600),
+        ("-KILL", 2600),
+    ] {
+        let mut child = Command::new(bin)
+            .args(["filter", big.to_str().unwrap(), "-o", out.to_str().unwrap()])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(ms));
+        kill(&mut child, signal);
+        assert_eq!(
+            every_final_file_is_complete(&out),
+            before,
+            "after {signal} at {ms} ms"
+        );
+    }
+}
+
+#[test]
+fn a_killed_render_leaves_no_dump_under_its_final_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let dump = dir.path().join("r.pds");
+    let render = Path::new(env!("CARGO_BIN_EXE_pathdensity")).with_file_name("render");
+    if !render.is_file() {
+        eprintln!("SKIPPED: {} not built", render.display());
+        return;
+    }
+    let mut child = Command::new(&render)
+        .args([
+            "--scene",
+            "glossy-room",
+            "--width",
+            "512",
+            "--height",
+            "512",
+        ])
+        .args(["--spp", "256", "-o", dump.to_str().unwrap()])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(700));
+    kill(&mut child, "-KILL");
+    assert!(!dump.exists(), "a partial dump under the final name");
+}
+
+#[test]
+fn special_files_are_refused_as_dumps() {
+    for p in ["/dev/zero", "/dev/null"] {
+        if Path::new(p).exists() {
+            let e = DumpReader::open(p).err().unwrap().to_string();
+            assert!(e.contains(p) && e.contains("not a regular file"), "{e}");
+        }
+    }
+}
