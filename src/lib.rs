@@ -12,6 +12,7 @@ pub mod imagespace;
 pub mod io;
 pub mod joint;
 pub mod methods;
+pub mod quantile;
 pub mod metrics;
 pub mod recon;
 pub mod regress;

@@ -10,6 +10,7 @@ use pathdensity::density::{FilterParams, IndexKind};
 use pathdensity::dump::Order;
 use pathdensity::imagespace::bilateral::BilateralParams;
 use pathdensity::joint::JointSpace;
+use pathdensity::joint::white::White;
 use pathdensity::methods::Method;
 use pathdensity::recon::ReconFilter;
 use pathdensity::synth::SynthParams;
@@ -59,9 +60,10 @@ enum Command {
         sigma_color: f64,
         #[arg(long, default_value_t = 2.0)]
         sigma_time: f64,
-        /// Luminance of white (radiance that maps to L* = 100).
-        #[arg(long, default_value_t = 1.0)]
-        white: f64,
+        /// Luminance of white (radiance that maps to L* = 100), or `auto`:
+        /// the dump's median positive luminance maps to L* = 50.
+        #[arg(long, default_value = "1")]
+        white: White,
         #[arg(long, value_enum, default_value_t = Recon::Box)]
         recon: Recon,
         /// Reference EXR (for an animation, REF.exr names REF_0000.exr, …).
@@ -190,7 +192,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     sigma_image,
                     sigma_color,
                     sigma_time,
-                    white,
+                    white: match white {
+                        White::Fixed(v) => v,
+                        White::Auto => 1.0,
+                    },
                 },
                 index,
                 ..FilterParams::default()
@@ -214,6 +219,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             };
             o.slice_row = slice_row;
             o.html = !no_html;
+            o.white_auto = white == White::Auto;
             let report = filter::filter(&o)?;
             print!("{}", report.summary());
         }

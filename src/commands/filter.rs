@@ -11,6 +11,7 @@ use crate::density::{self, Decision, FilterParams};
 use crate::dump::{DumpReader, Header};
 use crate::imagespace::{self, bilateral::BilateralParams};
 use crate::io::{atomic, exr, png};
+use crate::joint::white::White;
 use crate::methods::Method;
 use crate::metrics;
 use crate::recon::{self, Image, ReconFilter, groups::PixelGroups, robust};
@@ -41,6 +42,9 @@ pub struct FilterOptions {
     pub html: bool,
     /// Film row of the slice plot (default: the middle row).
     pub slice_row: Option<u32>,
+    /// Replace `params.space.white` by the dump's auto white
+    /// ([`crate::joint::white`]).
+    pub white_auto: bool,
 }
 
 impl FilterOptions {
@@ -61,6 +65,7 @@ impl FilterOptions {
             bilateral: BilateralParams::default(),
             html: true,
             slice_row: None,
+            white_auto: false,
         }
     }
 
@@ -106,6 +111,16 @@ pub fn filter(opts: &FilterOptions) -> Result<FilterReport> {
     let methods = Method::with_core(&opts.methods);
     let dump = DumpReader::open(&opts.dump)?;
     let h = dump.header().clone();
+    if opts.white_auto {
+        params.space.white = White::Auto.resolve(dump.records(), &h);
+    }
+    // From here on the options carry the resolved white (the bilateral
+    // filter's ΔE uses it too).
+    let resolved = FilterOptions {
+        params: params.clone(),
+        ..opts.clone()
+    };
+    let opts = &resolved;
     if let Some(row) = opts.slice_row
         && row >= h.height
     {
@@ -205,6 +220,7 @@ pub fn filter(opts: &FilterOptions) -> Result<FilterReport> {
             .iter()
             .map(|(m, _, s)| (m.name().to_string(), *s))
             .collect(),
+        white_auto: opts.white_auto,
         alpha: opts.alpha,
         bilateral: opts.bilateral,
         exposure: opts.exposure,

@@ -11,7 +11,7 @@ mod record;
 mod writer;
 
 pub use header::{HEADER_LEN_MAX, Header, MAGIC, Order, VERSION};
-pub use reader::DumpReader;
+pub use reader::{DumpReader, parse_prefix};
 pub use record::{InvalidCounts, Record, Validity};
 pub use writer::{DumpWriter, PresizedDump};
 

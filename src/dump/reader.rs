@@ -32,48 +32,15 @@ impl DumpReader {
             return Err(err("not a regular file".into()));
         }
         let size = meta.len();
-        let mut fixed = [0u8; 16];
-        file.read_exact(&mut fixed)
-            .map_err(|_| err(format!("file is {size} bytes, too short for a dump prefix")))?;
-        if &fixed[0..8] != MAGIC {
-            return Err(err("not a pathdensity dump (magic is not PDSDUMP1)".into()));
-        }
-        let version = u32::from_le_bytes(fixed[8..12].try_into().unwrap());
-        if version != VERSION {
-            return Err(err(format!(
-                "unsupported dump version {version} (expected {VERSION})"
-            )));
-        }
-        let header_len = u32::from_le_bytes(fixed[12..16].try_into().unwrap()) as usize;
-        if header_len > HEADER_LEN_MAX {
-            return Err(err(format!(
-                "header_len {header_len} exceeds the limit of {HEADER_LEN_MAX}"
-            )));
-        }
-        let offset = data_offset(header_len);
-        if size < offset as u64 {
-            return Err(err(format!(
-                "file is {size} bytes, shorter than its header and padding ({offset} bytes)"
-            )));
-        }
-        let mut head = vec![0u8; offset - 16];
-        file.read_exact(&mut head)
+        // The prefix is at most data_offset(HEADER_LEN_MAX) bytes: a bounded
+        // read whatever the header claims.
+        let mut prefix = Vec::new();
+        (&mut file)
+            .take(data_offset(HEADER_LEN_MAX) as u64)
+            .read_to_end(&mut prefix)
             .map_err(|e| DumpError::io(path, e))?;
-        let header = Header::decode(&head[..header_len]).map_err(err)?;
-        if head[header_len..].iter().any(|&b| b != 0) {
-            return Err(err("non-zero padding between header and records".into()));
-        }
-        let expected = header
-            .sample_count
-            .checked_mul(24)
-            .and_then(|b| b.checked_add(offset as u64))
-            .ok_or_else(|| err("sample_count overflows the file size".into()))?;
-        if size != expected {
-            return Err(err(format!(
-                "file size is {size} bytes but {} samples need {expected} bytes",
-                header.sample_count
-            )));
-        }
+        let (header, header_len) = parse_prefix(&prefix, size).map_err(err)?;
+        let expected = size;
         let map = if header.sample_count > 0 {
             // SAFETY: the file is opened read-only; a concurrent truncation by
             // another process is outside what any mmap reader can defend against.
@@ -117,4 +84,52 @@ impl DumpReader {
             None => &[],
         }
     }
+}
+
+/// Validates the start of a dump of `size` bytes (SPEC §1): magic, version,
+/// header length, exact header decoding, zero padding, and a size equal to
+/// `data_offset + 24 × sample_count`. `prefix` holds the file's first bytes
+/// (at least `data_offset` of them when the file is that long). Returns the
+/// header and its encoded length. Never allocates from a claimed size.
+pub fn parse_prefix(prefix: &[u8], size: u64) -> Result<(Header, usize), String> {
+    if prefix.len() < 16 {
+        return Err(format!("file is {size} bytes, too short for a dump prefix"));
+    }
+    if &prefix[0..8] != MAGIC {
+        return Err("not a pathdensity dump (magic is not PDSDUMP1)".into());
+    }
+    let version = u32::from_le_bytes(prefix[8..12].try_into().unwrap());
+    if version != VERSION {
+        return Err(format!(
+            "unsupported dump version {version} (expected {VERSION})"
+        ));
+    }
+    let header_len = u32::from_le_bytes(prefix[12..16].try_into().unwrap()) as usize;
+    if header_len > HEADER_LEN_MAX {
+        return Err(format!(
+            "header_len {header_len} exceeds the limit of {HEADER_LEN_MAX}"
+        ));
+    }
+    let offset = data_offset(header_len);
+    if size < offset as u64 || prefix.len() < offset {
+        return Err(format!(
+            "file is {size} bytes, shorter than its header and padding ({offset} bytes)"
+        ));
+    }
+    let header = Header::decode(&prefix[16..16 + header_len])?;
+    if prefix[16 + header_len..offset].iter().any(|&b| b != 0) {
+        return Err("non-zero padding between header and records".into());
+    }
+    let expected = header
+        .sample_count
+        .checked_mul(24)
+        .and_then(|b| b.checked_add(offset as u64))
+        .ok_or_else(|| "sample_count overflows the file size".to_string())?;
+    if size != expected {
+        return Err(format!(
+            "file size is {size} bytes but {} samples need {expected} bytes",
+            header.sample_count
+        ));
+    }
+    Ok((header, header_len))
 }

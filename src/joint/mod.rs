@@ -2,6 +2,7 @@
 //! measures distances.
 
 pub mod lab;
+pub mod white;
 
 use crate::dump::Record;
 

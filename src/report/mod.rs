@@ -42,6 +42,8 @@ pub struct FilterReport {
     /// Wall time to produce each image from the dump, passes it shares
     /// with other images included (see README).
     pub method_seconds: BTreeMap<String, f64>,
+    /// True when `parameters.space.white` was chosen by `--white auto`.
+    pub white_auto: bool,
     /// α of the trimmed mean.
     pub alpha: f64,
     pub bilateral: BilateralParams,
