@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
 
-use pathdensity::commands::{filter, info, regress};
+use pathdensity::commands::{filter, info, regress, sweep};
 use pathdensity::density::{FilterParams, IndexKind};
 use pathdensity::dump::Order;
 use pathdensity::imagespace::bilateral::BilateralParams;
@@ -13,6 +13,7 @@ use pathdensity::joint::JointSpace;
 use pathdensity::joint::white::White;
 use pathdensity::methods::Method;
 use pathdensity::recon::ReconFilter;
+use pathdensity::sweep::SweepOptions;
 use pathdensity::synth::SynthParams;
 
 #[derive(Parser)]
@@ -30,6 +31,15 @@ struct Cli {
 enum Recon {
     Box,
     Gaussian,
+}
+
+impl From<Recon> for ReconFilter {
+    fn from(r: Recon) -> ReconFilter {
+        match r {
+            Recon::Box => ReconFilter::Box,
+            Recon::Gaussian => ReconFilter::gaussian(),
+        }
+    }
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -102,6 +112,31 @@ enum Command {
         /// no exact σ is needed).
         #[arg(long)]
         no_html: bool,
+    },
+    /// Run the filter over a grid of k, σ_color, σ_image and white.
+    Sweep {
+        dump: PathBuf,
+        #[arg(long)]
+        reference: PathBuf,
+        #[arg(short, long)]
+        out: PathBuf,
+        #[arg(long, value_delimiter = ',', default_values_t = [5, 10, 20, 50, 200])]
+        k: Vec<usize>,
+        #[arg(long, value_delimiter = ',', default_values_t = [25.0, 50.0, 100.0, 200.0, 400.0])]
+        sigma_color: Vec<f64>,
+        #[arg(long, value_delimiter = ',', default_values_t = [1.5, 3.0, 6.0])]
+        sigma_image: Vec<f64>,
+        /// White luminances, numbers or `auto`.
+        #[arg(long, value_delimiter = ',', default_value = "1")]
+        white: Vec<White>,
+        #[arg(long, default_value_t = 2.0)]
+        sigma_time: f64,
+        #[arg(long, value_enum, default_value_t = Recon::Box)]
+        recon: Recon,
+        #[arg(long, default_value_t = 1.0)]
+        exposure: f64,
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
     },
     /// Re-run every regression fixture and compare with its expectations.
     Regress {
@@ -200,10 +235,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 index,
                 ..FilterParams::default()
             };
-            o.recon = match recon {
-                Recon::Box => ReconFilter::Box,
-                Recon::Gaussian => ReconFilter::gaussian(),
-            };
+            o.recon = recon.into();
             o.reference = reference;
             o.exposure = exposure;
             o.threads = threads;
@@ -222,6 +254,31 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             o.white_auto = white == White::Auto;
             let report = filter::filter(&o)?;
             print!("{}", report.summary());
+        }
+        Command::Sweep {
+            dump,
+            reference,
+            out,
+            k,
+            sigma_color,
+            sigma_image,
+            white,
+            sigma_time,
+            recon,
+            exposure,
+            threads,
+        } => {
+            let mut o = SweepOptions::new(dump, reference, out);
+            o.ks = k;
+            o.sigma_colors = sigma_color;
+            o.sigma_images = sigma_image;
+            o.whites = white;
+            o.sigma_time = sigma_time;
+            o.recon = recon.into();
+            o.exposure = exposure;
+            o.threads = threads;
+            let s = sweep::sweep(&o)?;
+            print!("{}", sweep::table(&s));
         }
         Command::Regress { dir, bless } => {
             let o = regress::regress(&dir, bless)?;

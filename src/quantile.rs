@@ -6,7 +6,11 @@
 /// Maps an f32 to a u32 whose unsigned order is the float order.
 pub fn key(v: f32) -> u32 {
     let b = v.to_bits();
-    if b & 0x8000_0000 != 0 { !b } else { b | 0x8000_0000 }
+    if b & 0x8000_0000 != 0 {
+        !b
+    } else {
+        b | 0x8000_0000
+    }
 }
 
 fn from_key(k: u32) -> f32 {

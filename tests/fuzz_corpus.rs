@@ -40,7 +40,8 @@ fn the_fuzz_corpus_and_crash_reproducers_parse_without_panicking() {
 
 #[test]
 fn prefixes_of_a_valid_dump_are_all_errors_not_panics() {
-    let seed = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/corpus/dump/seed-2x2x1-2-pixel.pds");
+    let seed =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/corpus/dump/seed-2x2x1-2-pixel.pds");
     let bytes = std::fs::read(seed).unwrap();
     assert!(parse_prefix(&bytes, bytes.len() as u64).is_ok());
     for cut in 0..bytes.len() {

@@ -3,6 +3,7 @@
 pub mod filter;
 pub mod info;
 pub mod regress;
+pub mod sweep;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
