@@ -137,6 +137,14 @@ enum Command {
         exposure: f64,
         #[arg(long, default_value_t = 0)]
         threads: usize,
+        /// Instead of the grid: compare the filtered image of each prefix
+        /// of a pass-major dump with the mean of equal total time, using the
+        /// first value of each list.
+        #[arg(long, requires = "render_seconds")]
+        equal_time: bool,
+        /// The dump's render time (the `render` command prints it).
+        #[arg(long)]
+        render_seconds: Option<f64>,
     },
     /// Re-run every regression fixture and compare with its expectations.
     Regress {
@@ -267,6 +275,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             recon,
             exposure,
             threads,
+            equal_time,
+            render_seconds,
         } => {
             let mut o = SweepOptions::new(dump, reference, out);
             o.ks = k;
@@ -277,8 +287,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             o.recon = recon.into();
             o.exposure = exposure;
             o.threads = threads;
-            let s = sweep::sweep(&o)?;
-            print!("{}", sweep::table(&s));
+            match render_seconds.filter(|_| equal_time) {
+                Some(secs) => print!("{}", sweep::equal_time(&o, secs)?),
+                None => print!("{}", sweep::table(&sweep::sweep(&o)?)),
+            }
         }
         Command::Regress { dir, bless } => {
             let o = regress::regress(&dir, bless)?;

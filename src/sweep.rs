@@ -475,3 +475,126 @@ impl Sweep {
         Ok(svg)
     }
 }
+
+/// One prefix of the equal-time comparison.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct EqualTimeRow {
+    /// Passes (samples per pixel) the filter used.
+    pub spp: u32,
+    /// Render time of those passes plus the filter and reconstruction.
+    pub filtered_seconds: f64,
+    pub filtered: Metrics,
+    /// The pass count whose render time alone is closest to, and not above,
+    /// `filtered_seconds` (at most the dump's spp).
+    pub mean_spp: u32,
+    pub mean_seconds: f64,
+    pub mean: Metrics,
+}
+
+/// The equal-time comparison on a pass-major still, for one configuration
+/// (each list's single value, else the paper's default): the first m
+/// passes are an m-spp render. For m = 1, 2, 4, … and the full count, the filtered
+/// image of m passes is set against the mean of the most passes that cost
+/// no more in total, with render time `render_seconds / spp` per pass.
+pub fn equal_time(
+    o: &SweepOptions,
+    render_seconds: f64,
+    progress: &ProgressBar,
+) -> Result<Vec<EqualTimeRow>> {
+    let dump = DumpReader::open(&o.dump)?;
+    let h = dump.header().clone();
+    if h.order != crate::dump::Order::PassMajor || h.frames != 1 || h.spp == 0 {
+        bail!(
+            "{}: --equal-time needs a pass-major still with a uniform spp",
+            o.dump.display()
+        );
+    }
+    if !(render_seconds > 0.0 && render_seconds.is_finite()) {
+        bail!("--render-seconds must be positive");
+    }
+    let reference = exr::read_reference(&o.reference, h.width as usize, h.height as usize, 1)?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(o.threads)
+        .build()
+        .context("cannot start the worker threads")?;
+    let per_pass = render_seconds / h.spp as f64;
+    let pixels = h.pixels();
+    let prefix = |m: u32| {
+        let mut ph = h.clone();
+        ph.spp = m;
+        ph.sample_count = m as u64 * pixels as u64;
+        (ph, &dump.records()[..m as usize * pixels])
+    };
+    let mean_of = |m: u32| {
+        let (ph, recs) = prefix(m);
+        let rec = recon::reconstruct(recs, &ph, o.recon, |_| true);
+        metrics::compare(&rec.mean, &reference, o.exposure).pooled
+    };
+    // One configuration: a single value given is used, a list (such as
+    // the default grid) means the paper's default.
+    let one = |v: &[f64], default: f64| if v.len() == 1 { v[0] } else { default };
+    let paper = JointSpace::default();
+    let params = FilterParams {
+        k: if o.ks.len() == 1 { o.ks[0] } else { 10 },
+        space: JointSpace {
+            sigma_image: one(&o.sigma_images, paper.sigma_image),
+            sigma_color: one(&o.sigma_colors, paper.sigma_color),
+            sigma_time: o.sigma_time,
+            white: match o.whites.as_slice() {
+                [w] => w.resolve(dump.records(), &h),
+                _ => paper.white,
+            },
+        },
+        ..FilterParams::default()
+    };
+    params.space.validate().map_err(anyhow::Error::msg)?;
+    let mut ms: Vec<u32> = std::iter::successors(Some(1u32), |m| m.checked_mul(2))
+        .take_while(|&m| m < h.spp)
+        .collect();
+    ms.push(h.spp);
+    progress.set_length(ms.len() as u64);
+    let mut rows = Vec::new();
+    for m in ms {
+        let (ph, recs) = prefix(m);
+        let t = Instant::now();
+        let (filtered, filter_secs) = pool.install(|| {
+            let result = density::run(recs, &ph, &params, &ProgressBar::hidden());
+            let rec = recon::reconstruct(recs, &ph, o.recon, |i| {
+                Decision::accepted(result.decisions[i])
+            });
+            (rec.filtered, t.elapsed().as_secs_f64())
+        });
+        let filtered_seconds = m as f64 * per_pass + filter_secs;
+        let mean_spp = ((filtered_seconds / per_pass).floor() as u32).clamp(1, h.spp);
+        rows.push(EqualTimeRow {
+            spp: m,
+            filtered_seconds,
+            filtered: metrics::compare(&filtered, &reference, o.exposure).pooled,
+            mean_spp,
+            mean_seconds: mean_spp as f64 * per_pass,
+            mean: mean_of(mean_spp),
+        });
+        progress.inc(1);
+    }
+    progress.finish_and_clear();
+    Ok(rows)
+}
+
+/// The equal-time table as text (also written as `equal_time.csv`).
+pub fn equal_time_csv(rows: &[EqualTimeRow]) -> String {
+    let mut s = String::from("spp,method,seconds,rms,rms_display\n");
+    for r in rows {
+        s += &format!(
+            "{},filtered,{},{},{}\n{},mean,{},{},{}\n",
+            r.spp,
+            r.filtered_seconds,
+            r.filtered.rms,
+            r.filtered.rms_display,
+            r.mean_spp,
+            r.mean_seconds,
+            r.mean.rms,
+            r.mean.rms_display
+        );
+    }
+    s
+}

@@ -103,3 +103,68 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
         );
     }
 }
+
+/// `sweep --equal-time`: the first m passes of a pass-major dump are an
+/// m-spp render, so every row must equal `filter` run on a dump holding
+/// only those passes; the mean's pass count is the most that fits the time.
+#[test]
+fn equal_time_rows_are_prefix_renders_at_matching_time() {
+    use pathdensity::commands::filter::{FilterOptions, filter};
+    use pathdensity::dump::{DumpReader, DumpWriter};
+    use pathdensity::methods::Method;
+    let fixture =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/glossy-room-pass");
+    let dir = tempfile::tempdir().unwrap();
+    let o = SweepOptions::new(
+        fixture.join("dump.pds"),
+        fixture.join("reference.exr"),
+        dir.path().join("eq"),
+    );
+    let prefix_metrics = |m: u32, name: &str| {
+        let dump = DumpReader::open(fixture.join("dump.pds")).unwrap();
+        let mut h = dump.header().clone();
+        let n = m as usize * h.pixels();
+        h.spp = m;
+        h.sample_count = n as u64;
+        let path = dir.path().join(format!("prefix{m}.pds"));
+        let mut w = DumpWriter::create(&path, h).unwrap();
+        w.push_all(&dump.records()[..n]).unwrap();
+        w.finish().unwrap();
+        let mut f = FilterOptions::new(&path, dir.path().join(format!("f{m}")));
+        f.reference = Some(fixture.join("reference.exr"));
+        f.methods = vec![Method::Mean, Method::Filtered];
+        f.html = false;
+        filter(&f).unwrap().metrics[name].pooled
+    };
+
+    // Rendering dominates (1e6 s for 8 passes): the mean gets as many
+    // passes as the filter, capped at the dump's 8.
+    let slow = pathdensity::sweep::equal_time(&o, 1e6, &indicatif::ProgressBar::hidden()).unwrap();
+    let spps: Vec<u32> = slow.iter().map(|r| r.spp).collect();
+    assert_eq!(spps, [1, 2, 4, 8]);
+    for r in &slow {
+        assert_eq!(r.mean_spp, r.spp);
+        assert_eq!(r.filtered, prefix_metrics(r.spp, "filtered"), "{r:?}");
+        assert_eq!(r.mean, prefix_metrics(r.mean_spp, "mean"), "{r:?}");
+        assert!(r.mean_seconds <= r.filtered_seconds);
+    }
+    // Rendering is nearly free: the filter's time buys the mean every pass.
+    let fast = pathdensity::sweep::equal_time(&o, 1e-9, &indicatif::ProgressBar::hidden()).unwrap();
+    assert!(fast.iter().all(|r| r.mean_spp == 8));
+    // A pixel-major dump has no prefix renders: refused by name.
+    let e = pathdensity::sweep::equal_time(
+        &SweepOptions::new(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/glossy-room/dump.pds"),
+            fixture.join("reference.exr"),
+            dir.path().join("eq2"),
+        ),
+        1.0,
+        &indicatif::ProgressBar::hidden(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("glossy-room/dump.pds") && e.contains("pass-major"),
+        "{e}"
+    );
+}

@@ -67,3 +67,39 @@ pub fn table(s: &Sweep) -> String {
     }
     t + "(* on the time–RMS Pareto front)\n"
 }
+
+/// `sweep --equal-time`: writes `equal_time.csv` and `equal_time.json`
+/// and returns the printed table.
+pub fn equal_time(o: &SweepOptions, render_seconds: f64) -> Result<String> {
+    std::fs::create_dir_all(&o.out_dir)?;
+    let progress = super::progress_bar(0, "prefixes");
+    let rows = sweep::equal_time(o, render_seconds, &progress)?;
+    let dir = &o.out_dir;
+    atomic::write_bytes(
+        &dir.join("equal_time.csv"),
+        sweep::equal_time_csv(&rows).as_bytes(),
+    )?;
+    let json = serde_json::to_vec_pretty(&rows).expect("rows serialise");
+    atomic::write_bytes(&dir.join("equal_time.json"), &json)?;
+    let mut t = format!(
+        "{:>6} {:>12} {:>10} {:>10} | {:>6} {:>12} {:>10} {:>10} | winner\n",
+        "spp", "filtered s", "RMS", "RMS disp", "spp", "mean s", "RMS", "RMS disp"
+    );
+    for r in &rows {
+        let win = |a: f64, b: f64| if a < b { "filtered" } else { "mean" };
+        t += &format!(
+            "{:>6} {:>12.3} {:>10.6} {:>10.5} | {:>6} {:>12.3} {:>10.6} {:>10.5} | RMS: {}, display: {}\n",
+            r.spp,
+            r.filtered_seconds,
+            r.filtered.rms,
+            r.filtered.rms_display,
+            r.mean_spp,
+            r.mean_seconds,
+            r.mean.rms,
+            r.mean.rms_display,
+            win(r.filtered.rms, r.mean.rms),
+            win(r.filtered.rms_display, r.mean.rms_display)
+        );
+    }
+    Ok(t)
+}
