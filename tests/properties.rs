@@ -1,0 +1,171 @@
+//! Properties over random small dumps (proptest, fixed seed so CI is
+//! reproducible; `PROPTEST_CASES` raises the case count locally):
+//! thread-count invariance of every output file, σ_color → ∞ makes the
+//! decisions colour-blind, and scaling radiance with the Lab white keeps
+//! the decisions.
+
+mod common;
+
+use common::REJECTED;
+use indicatif::ProgressBar;
+use pathdensity::commands::filter::{FilterOptions, filter};
+use pathdensity::density::{self, Decision, FilterParams};
+use pathdensity::dump::{Order, Record};
+use pathdensity::joint::JointSpace;
+use pathdensity::recon::{ReconFilter, reconstruct};
+use pathdensity::synth::SynthParams;
+use proptest::prelude::*;
+use proptest::test_runner::RngSeed;
+
+fn config(cases: u32) -> ProptestConfig {
+    ProptestConfig {
+        cases: std::env::var("PROPTEST_CASES")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(cases),
+        rng_seed: RngSeed::Fixed(0x5eed),
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    }
+}
+
+/// Small synthetic dumps: any film from 1 × 1, 1–3 frames, 1–12 spp, either
+/// order, jittered or pixel-centre samples, fireflies, sometimes a light.
+fn dumps(pixel_centre: impl Strategy<Value = bool>) -> impl Strategy<Value = SynthParams> {
+    (
+        (1u32..20, 1u32..14, 1u32..4, 1u32..12),
+        prop_oneof![Just(Order::PixelMajor), Just(Order::PassMajor)],
+        0.0f64..0.1,
+        pixel_centre,
+        proptest::option::of((0u32..10, 0u32..8, 1u32..4)),
+        any::<u64>(),
+    )
+        .prop_map(
+            |((width, height, frames, spp), order, ff, pc, light, seed)| SynthParams {
+                width,
+                height,
+                frames,
+                spp,
+                order,
+                firefly_fraction: ff,
+                pixel_centre: pc,
+                light: light.map(|(x, y, s)| (x, y, s, 40.0)),
+                seed,
+                ..SynthParams::default()
+            },
+        )
+}
+
+fn records(p: &SynthParams) -> Vec<Record> {
+    p.records().collect()
+}
+
+fn decide(recs: &[Record], p: &SynthParams, params: &FilterParams) -> Vec<u8> {
+    density::run(recs, &p.header(), params, &ProgressBar::hidden()).decisions
+}
+
+proptest! {
+    #![proptest_config(config(24))]
+
+    /// Every file `filter` writes (all methods, σ map, decisions) has the
+    /// same bytes for 1 and 3 threads, and for either index.
+    #[test]
+    fn every_output_is_identical_for_any_thread_count(
+        p in dumps(any::<bool>()),
+        k in 1usize..16,
+        sigma_color in prop_oneof![Just(100.0), 1.0f64..1000.0],
+    ) {
+        let dir = tempfile::tempdir().unwrap();
+        let dump = dir.path().join("d.pds");
+        p.write(&dump).unwrap();
+        let run = |threads: usize, index: density::IndexKind, name: &str| {
+            let out = dir.path().join(name);
+            let mut o = FilterOptions::new(&dump, &out);
+            o.params.k = k;
+            o.params.space.sigma_color = sigma_color;
+            o.params.index = index;
+            o.threads = threads;
+            o.html = false;
+            o.sigma_map = true;
+            o.decisions = Some(out.join("decisions.bin"));
+            std::fs::create_dir_all(&out).unwrap();
+            filter(&o).unwrap();
+            let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(&out)
+                .unwrap()
+                .map(|e| e.unwrap().path())
+                .filter(|f| f.extension().is_some_and(|x| x == "exr" || x == "bin"))
+                .map(|f| (f.file_name().unwrap().to_string_lossy().into_owned(), std::fs::read(&f).unwrap()))
+                .collect();
+            files.sort();
+            files
+        };
+        let one = run(1, density::IndexKind::Grid, "t1");
+        prop_assert!(one.len() >= 8, "{:?}", one.iter().map(|f| &f.0).collect::<Vec<_>>());
+        prop_assert!(one == run(3, density::IndexKind::Grid, "t3"));
+        prop_assert!(one == run(3, density::IndexKind::Kdtree, "kd"));
+    }
+
+    /// σ_color → ∞ (10⁹): replacing every colour leaves the decisions
+    /// unchanged, and `filtered` equals `mean` on every pixel that lost no
+    /// sample. (Not on every pixel: a rejected sample changes its pixel's
+    /// average, SPEC §3.) Jittered samples only: with pixel-centre samples,
+    /// image distances tie exactly and a σ of exactly 1 can flip on the
+    /// colour's 10⁻⁷ contribution.
+    #[test]
+    fn infinite_sigma_color_makes_decisions_colour_blind(
+        p in dumps(Just(false)),
+        k in 1usize..16,
+        seed in any::<u64>(),
+    ) {
+        let params = FilterParams {
+            k,
+            space: JointSpace { sigma_color: 1e9, ..JointSpace::default() },
+            ..FilterParams::default()
+        };
+        let a = records(&p);
+        let mut s = seed | 1;
+        let mut u = || { s ^= s << 13; s ^= s >> 7; s ^= s << 17; (s >> 40) as f32 / (1u64 << 24) as f32 };
+        let b: Vec<Record> = a
+            .iter()
+            .map(|r| Record::new(r.x, r.y, r.t, [1e3 * u(), 20.0 * u(), u()]))
+            .collect();
+        let da = decide(&a, &p, &params);
+        prop_assert_eq!(&da, &decide(&b, &p, &params));
+        let h = p.header();
+        let rec = reconstruct(&b, &h, ReconFilter::Box, |i| Decision::accepted(da[i]));
+        let mut lost = vec![false; h.pixels() * h.frames as usize];
+        for (i, r) in b.iter().enumerate() {
+            if da[i] == REJECTED {
+                lost[r.pixel_index(&h)] = true;
+            }
+        }
+        for (px, lost) in lost.iter().enumerate() {
+            if !lost {
+                prop_assert_eq!(rec.filtered.data[px], rec.mean.data[px], "pixel {}", px);
+            }
+        }
+    }
+
+    /// Scaling every radiance by 2ⁿ together with Y_w leaves every Lab
+    /// coordinate, hence every decision, unchanged. Powers of two are exact
+    /// in floating point; another constant moves coordinates by an ulp, which
+    /// can flip a sample whose σ is within rounding of 1 (README, "Exposure").
+    #[test]
+    fn scaling_radiance_with_the_white_keeps_every_decision(
+        p in dumps(any::<bool>()),
+        k in 1usize..16,
+        n in -12i32..12,
+        white in 0.05f64..20.0,
+    ) {
+        let c = 2f32.powi(n);
+        let space = JointSpace { white, ..JointSpace::default() };
+        let params = FilterParams { k, space, ..FilterParams::default() };
+        let scaled_params = FilterParams {
+            space: JointSpace { white: white * c as f64, ..space },
+            ..params.clone()
+        };
+        let a = records(&p);
+        let b: Vec<Record> = a.iter().map(|r| Record::new(r.x, r.y, r.t, [r.r * c, r.g * c, r.b * c])).collect();
+        prop_assert_eq!(decide(&a, &p, &params), decide(&b, &p, &scaled_params));
+    }
+}
