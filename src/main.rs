@@ -13,6 +13,7 @@ use pathdensity::joint::JointSpace;
 use pathdensity::joint::white::White;
 use pathdensity::methods::Method;
 use pathdensity::recon::ReconFilter;
+use pathdensity::recon::rwmc::RwmcParams;
 use pathdensity::sweep::SweepOptions;
 use pathdensity::synth::SynthParams;
 
@@ -112,6 +113,27 @@ enum Command {
         /// no exact σ is needed).
         #[arg(long)]
         no_html: bool,
+        /// Groups of the median of means (mon, gmon).
+        #[arg(long, default_value_t = 11)]
+        mon_groups: usize,
+        /// rwmc: number of cascades S.
+        #[arg(long, default_value_t = 6)]
+        rwmc_cascades: usize,
+        /// rwmc: luminance s₀ where the second cascade starts.
+        #[arg(long, default_value_t = 1.0)]
+        rwmc_start: f64,
+        /// rwmc: ratio b between cascades.
+        #[arg(long, default_value_t = 8.0)]
+        rwmc_base: f64,
+        /// rwmc: κ, samples a bright feature needs to be trusted.
+        #[arg(long, default_value_t = 32.0)]
+        rwmc_kappa: f64,
+        /// rwmc: luminance always considered reliable.
+        #[arg(long, default_value_t = 0.05)]
+        rwmc_min_luminance: f64,
+        /// filtered_energy: σ (pixels) of the spread of the removed energy.
+        #[arg(long, default_value_t = 8.0)]
+        energy_sigma: f64,
     },
     /// Run the filter over a grid of k, σ_color, σ_image and white.
     Sweep {
@@ -227,6 +249,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             bilateral_sigma_r,
             slice_row,
             no_html,
+            mon_groups,
+            rwmc_cascades,
+            rwmc_start,
+            rwmc_base,
+            rwmc_kappa,
+            rwmc_min_luminance,
+            energy_sigma,
         } => {
             let mut o = filter::FilterOptions::new(dump, out);
             o.params = FilterParams {
@@ -253,6 +282,15 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 o.methods = m;
             }
             o.alpha = alpha;
+            o.mon_groups = mon_groups;
+            o.rwmc = RwmcParams {
+                cascades: rwmc_cascades,
+                start: rwmc_start,
+                base: rwmc_base,
+                kappa: rwmc_kappa,
+                min_luminance: rwmc_min_luminance,
+            };
+            o.energy_sigma = energy_sigma;
             o.bilateral = BilateralParams {
                 sigma_s: bilateral_sigma_s,
                 sigma_r: bilateral_sigma_r,

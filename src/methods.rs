@@ -22,10 +22,20 @@ pub enum Method {
     /// The bilateral filter applied to the filtered image (Figure 6d).
     #[value(name = "filtered_bilateral")]
     FilteredBilateral,
+    /// Per-pixel median of means (Buisine et al. 2021).
+    Mon,
+    /// Gini-adaptive median of means (Buisine et al. 2021).
+    Gmon,
+    /// Reweighted cascades (Zirr et al. 2018).
+    Rwmc,
+    /// The filtered image with the removed energy spread back
+    /// ([`crate::recon::energy`]).
+    #[value(name = "filtered_energy")]
+    FilteredEnergy,
 }
 
 impl Method {
-    pub const ALL: [Method; 7] = [
+    pub const ALL: [Method; 11] = [
         Method::Mean,
         Method::Filtered,
         Method::Median,
@@ -33,6 +43,10 @@ impl Method {
         Method::Bilateral,
         Method::Median3,
         Method::FilteredBilateral,
+        Method::Mon,
+        Method::Gmon,
+        Method::Rwmc,
+        Method::FilteredEnergy,
     ];
 
     pub fn name(self) -> &'static str {
@@ -44,6 +58,10 @@ impl Method {
             Method::Bilateral => "bilateral",
             Method::Median3 => "median3",
             Method::FilteredBilateral => "filtered_bilateral",
+            Method::Mon => "mon",
+            Method::Gmon => "gmon",
+            Method::Rwmc => "rwmc",
+            Method::FilteredEnergy => "filtered_energy",
         }
     }
 

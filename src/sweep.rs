@@ -139,20 +139,35 @@ pub fn run(o: &SweepOptions, progress: &ProgressBar) -> Result<Sweep> {
     // The baselines, once: the filter command at the paper's defaults.
     let mut fo = FilterOptions::new(&o.dump, o.out_dir.join("baselines"));
     fo.reference = Some(o.reference.clone());
-    fo.methods = vec![Method::Median, Method::Trimmed, Method::Bilateral];
+    fo.methods = vec![
+        Method::Median,
+        Method::Trimmed,
+        Method::Bilateral,
+        Method::Mon,
+        Method::Gmon,
+        Method::Rwmc,
+    ];
     fo.html = false;
     fo.recon = o.recon;
     fo.exposure = o.exposure;
     fo.threads = o.threads;
     let base = filter(&fo)?;
-    let baselines = ["mean", "median", "trimmed", "bilateral"]
-        .iter()
-        .map(|&m| Baseline {
-            method: m.to_string(),
-            seconds: base.method_seconds[m],
-            metrics: base.metrics[m].pooled,
-        })
-        .collect();
+    let baselines = [
+        "mean",
+        "median",
+        "trimmed",
+        "bilateral",
+        "mon",
+        "gmon",
+        "rwmc",
+    ]
+    .iter()
+    .map(|&m| Baseline {
+        method: m.to_string(),
+        seconds: base.method_seconds[m],
+        metrics: base.metrics[m].pooled,
+    })
+    .collect();
 
     let valid = base.counts.valid;
     let configs = grid(o);

@@ -83,14 +83,23 @@ fn filter_writes_images_decisions_and_a_report() {
             "filtered.png",
             "filtered_bilateral.exr",
             "filtered_bilateral.png",
+            "filtered_energy.exr",
+            "filtered_energy.png",
+            "gmon.exr",
+            "gmon.png",
             "mean.exr",
             "mean.png",
             "median.exr",
             "median.png",
             "median3.exr",
             "median3.png",
+            "mon.exr",
+            "mon.png",
+            "rejected.exr",
             "report.html",
             "report.json",
+            "rwmc.exr",
+            "rwmc.png",
             "sigma.exr",
             "sigma.png",
             "slice.svg",
@@ -152,7 +161,7 @@ fn every_output_is_bit_identical_for_1_2_and_8_threads() {
                 .into_iter()
                 .filter(|f| !f.starts_with("report."))
                 .collect();
-            assert_eq!(names.len(), 17);
+            assert_eq!(names.len(), 26);
             let mut v: Vec<Vec<u8>> = names
                 .iter()
                 .map(|f| std::fs::read(out.join(f)).unwrap())
@@ -189,7 +198,7 @@ fn an_animation_writes_every_image_per_frame() {
         "trimmed",
         "--no-html",
     ]);
-    let mut expected: Vec<String> = ["filtered", "mean", "trimmed"]
+    let mut expected: Vec<String> = ["filtered", "mean", "rejected", "trimmed"]
         .iter()
         .flat_map(|n| (0..3).map(move |f| format!("{n}_{f:04}.exr")))
         .collect();

@@ -76,10 +76,21 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
         .collect();
     assert!(autos.iter().all(|&v| v == autos[0] && v > 0.0 && v != 1.0));
     let names: Vec<&str> = s.baselines.iter().map(|b| b.method.as_str()).collect();
-    assert_eq!(names, ["mean", "median", "trimmed", "bilateral"]);
+    assert_eq!(
+        names,
+        [
+            "mean",
+            "median",
+            "trimmed",
+            "bilateral",
+            "mon",
+            "gmon",
+            "rwmc"
+        ]
+    );
 
     let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
-    assert_eq!(csv.lines().count(), 1 + 24 + 4);
+    assert_eq!(csv.lines().count(), 1 + 24 + 7);
     assert_eq!(csv.matches("failed:").count(), 16);
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("sweep.json")).unwrap()).unwrap();

@@ -14,10 +14,11 @@ use crate::io::{atomic, exr, png};
 use crate::joint::white::White;
 use crate::methods::Method;
 use crate::metrics;
-use crate::recon::{self, Image, ReconFilter, groups::PixelGroups, robust};
+use crate::recon::rwmc::{self, RwmcParams};
+use crate::recon::{self, Image, ReconFilter, energy, groups::PixelGroups, mon, robust};
 use crate::report::html::{self, Assets};
 use crate::report::plots;
-use crate::report::{FilterReport, Timing};
+use crate::report::{EnergyRemoved, FilterReport, Timing};
 
 #[derive(Clone, Debug)]
 pub struct FilterOptions {
@@ -45,6 +46,11 @@ pub struct FilterOptions {
     /// Replace `params.space.white` by the dump's auto white
     /// ([`crate::joint::white`]).
     pub white_auto: bool,
+    /// Groups of the median of means (mon, gmon).
+    pub mon_groups: usize,
+    pub rwmc: RwmcParams,
+    /// σ_e of the energy-aware filter's spread, in pixels.
+    pub energy_sigma: f64,
 }
 
 impl FilterOptions {
@@ -66,6 +72,9 @@ impl FilterOptions {
             html: true,
             slice_row: None,
             white_auto: false,
+            mon_groups: mon::DEFAULT_GROUPS,
+            rwmc: RwmcParams::default(),
+            energy_sigma: energy::DEFAULT_SPREAD_SIGMA,
         }
     }
 
@@ -85,6 +94,13 @@ impl FilterOptions {
         if !(self.exposure > 0.0 && self.exposure.is_finite()) {
             bail!("--exposure must be finite and positive");
         }
+        if self.mon_groups == 0 {
+            bail!("--mon-groups must be at least 1");
+        }
+        if !(self.energy_sigma > 0.0 && self.energy_sigma <= 1e4) {
+            bail!("--energy-sigma must lie in (0, 10000] pixels");
+        }
+        self.rwmc.validate().map_err(anyhow::Error::msg)?;
         self.bilateral.validate().map_err(anyhow::Error::msg)
     }
 }
@@ -159,8 +175,9 @@ pub fn filter(opts: &FilterOptions) -> Result<FilterReport> {
         fallback_pixels,
         empty_pixels,
     } = rec;
+    let removed = energy::removed(&mean, &filtered);
     let images = pool.install(|| {
-        let core = (mean, filtered, occupancy);
+        let core = (mean, filtered, occupancy, &removed);
         baselines(
             records,
             &h,
@@ -189,6 +206,7 @@ pub fn filter(opts: &FilterOptions) -> Result<FilterReport> {
     for (m, img, _) in &images {
         outputs.extend(exr::write_image(dir, m.name(), img)?);
     }
+    outputs.extend(exr::write_image(dir, "rejected", &removed)?);
     if let Some(img) = &sigma_img {
         outputs.extend(exr::write_image(dir, "sigma", img)?);
     }
@@ -221,6 +239,10 @@ pub fn filter(opts: &FilterOptions) -> Result<FilterReport> {
             .map(|(m, _, s)| (m.name().to_string(), *s))
             .collect(),
         white_auto: opts.white_auto,
+        energy_removed: EnergyRemoved::new(&removed, &images),
+        mon_groups: opts.mon_groups,
+        rwmc: opts.rwmc,
+        energy_sigma: opts.energy_sigma,
         alpha: opts.alpha,
         bilateral: opts.bilateral,
         exposure: opts.exposure,
@@ -298,23 +320,38 @@ fn baselines(
     h: &Header,
     opts: &FilterOptions,
     methods: &[Method],
-    (mean, filtered, occupancy): (Image, Image, Vec<u32>),
+    (mean, filtered, occupancy, removed): (Image, Image, Vec<u32>, &Image),
     mean_seconds: f64,
     filter_seconds: f64,
 ) -> Images {
     let mut list = Vec::new();
     let white = opts.params.space.white;
     let wants = |m| methods.contains(&m);
-    if wants(Method::Median) || wants(Method::Trimmed) {
+    let grouped = [Method::Median, Method::Trimmed, Method::Mon, Method::Gmon];
+    if grouped.into_iter().any(wants) {
         let t = Instant::now();
         let groups = PixelGroups::new(records, h);
-        let r = robust::robust_images(&groups, h, opts.alpha);
-        let secs = t.elapsed().as_secs_f64();
-        for (m, img) in [(Method::Median, r.median), (Method::Trimmed, r.trimmed)] {
-            if wants(m) {
-                list.push((m, img, secs));
+        let group_seconds = t.elapsed().as_secs_f64();
+        let mut pair = |a: Method, b: Method, make: &dyn Fn() -> (Image, Image)| {
+            if wants(a) || wants(b) {
+                let t = Instant::now();
+                let (ia, ib) = make();
+                let secs = group_seconds + t.elapsed().as_secs_f64();
+                for (m, img) in [(a, ia), (b, ib)] {
+                    if wants(m) {
+                        list.push((m, img, secs));
+                    }
+                }
             }
-        }
+        };
+        pair(Method::Median, Method::Trimmed, &|| {
+            let r = robust::robust_images(&groups, h, opts.alpha);
+            (r.median, r.trimmed)
+        });
+        pair(Method::Mon, Method::Gmon, &|| {
+            let r = mon::mon_images(&groups, h, opts.mon_groups);
+            (r.mon, r.gmon)
+        });
     }
     let timed = |f: &dyn Fn() -> Image| {
         let t = Instant::now();
@@ -334,6 +371,19 @@ fn baselines(
             timed(&|| imagespace::bilateral(&filtered, &occupancy, opts.bilateral, white));
         list.push((
             Method::FilteredBilateral,
+            img,
+            filter_seconds + mean_seconds + s,
+        ));
+    }
+    if wants(Method::Rwmc) {
+        let (img, s) = timed(&|| rwmc::rwmc(records, h, &opts.rwmc));
+        list.push((Method::Rwmc, img, s));
+    }
+    if wants(Method::FilteredEnergy) {
+        let (img, s) =
+            timed(&|| energy::energy_aware(&filtered, removed, &occupancy, opts.energy_sigma));
+        list.push((
+            Method::FilteredEnergy,
             img,
             filter_seconds + mean_seconds + s,
         ));

@@ -2,9 +2,12 @@
 //! reconstruction filter W, accumulated in f64 in file order so that the
 //! result does not depend on the thread count.
 
+pub mod energy;
 pub mod groups;
 pub mod median;
+pub mod mon;
 pub mod robust;
+pub mod rwmc;
 
 use crate::dump::{Header, Record, Validity};
 

@@ -5,9 +5,11 @@ use std::collections::BTreeMap;
 use crate::density::{FilterCounts, FilterParams};
 use crate::dump::Header;
 use crate::imagespace::bilateral::BilateralParams;
+use crate::joint::lab::luminance;
 use crate::methods::Method;
 use crate::metrics::ImageMetrics;
-use crate::recon::ReconFilter;
+use crate::recon::rwmc::RwmcParams;
+use crate::recon::{Image, ReconFilter, energy};
 
 pub mod html;
 pub mod plots;
@@ -22,6 +24,32 @@ pub struct Timing {
     pub reconstruct_seconds: f64,
     pub write_seconds: f64,
     pub total_seconds: f64,
+}
+
+/// The radiance the path-density filter removed, `mean − filtered`
+/// summed over the film ([`crate::recon::energy`]).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct EnergyRemoved {
+    /// Σ over pixels, per channel.
+    pub sum_rgb: [f64; 3],
+    /// Σ Y(removed) / Σ Y(mean): the share of the mean's energy removed.
+    pub fraction_of_mean: f64,
+}
+
+impl EnergyRemoved {
+    pub fn new(removed: &Image, images: &[(Method, Image, f64)]) -> EnergyRemoved {
+        let sum_rgb = energy::channel_sums(removed);
+        let mean = images
+            .iter()
+            .find(|(m, _, _)| *m == Method::Mean)
+            .map(|(_, img, _)| luminance(energy::channel_sums(img)))
+            .unwrap_or(0.0);
+        let removed_y = luminance(sum_rgb);
+        EnergyRemoved {
+            sum_rgb,
+            fraction_of_mean: if mean != 0.0 { removed_y / mean } else { 0.0 },
+        }
+    }
 }
 
 #[derive(Clone, Debug, serde::Serialize)]
@@ -44,6 +72,13 @@ pub struct FilterReport {
     pub method_seconds: BTreeMap<String, f64>,
     /// True when `parameters.space.white` was chosen by `--white auto`.
     pub white_auto: bool,
+    /// What the path-density filter took out (`rejected.exr`).
+    pub energy_removed: EnergyRemoved,
+    /// Groups of mon and gmon.
+    pub mon_groups: usize,
+    pub rwmc: RwmcParams,
+    /// σ_e (pixels) of filtered_energy's spread.
+    pub energy_sigma: f64,
     /// α of the trimmed mean.
     pub alpha: f64,
     pub bilateral: BilateralParams,

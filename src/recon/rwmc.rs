@@ -1,0 +1,271 @@
+//! Reweighting firefly samples (rwmc), after Zirr, Hanika and Dachsbacher,
+//! "Reweighting firefly samples for improved finite-sample Monte Carlo
+//! estimates", Computer Graphics Forum 2018.
+//!
+//! Instead of rejecting bright samples, each sample is split between two
+//! of S framebuffer cascades by its luminance (paper §4, Eq. 8–9), so the
+//! plain sum of the cascades is the mean. The reweighting pass (§5) then
+//! keeps a bright cascade in a pixel only as far as enough samples in the
+//! pixel and its 3 × 3 neighbourhood support it (counting reliability,
+//! Eq. 12–13) or the pixel is already bright (colour reliability).
+//! Samples are binned by the pixel they fall in (box reconstruction).
+
+use rayon::prelude::*;
+
+use super::Image;
+use crate::dump::{Header, Record, Validity};
+use crate::joint::lab::luminance;
+
+/// The method's parameters; the defaults are the authors'.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct RwmcParams {
+    /// S, the number of cascades (≥ 2).
+    pub cascades: usize,
+    /// s₀, the luminance where the second cascade starts to fill.
+    pub start: f64,
+    /// b, the ratio between consecutive cascades (> 1).
+    pub base: f64,
+    /// κ, the number of samples a bright feature needs to be trusted.
+    pub kappa: f64,
+    /// Luminance always considered reliable (the colour-reliability floor).
+    pub min_luminance: f64,
+}
+
+impl Default for RwmcParams {
+    fn default() -> Self {
+        RwmcParams {
+            cascades: 6,
+            start: 1.0,
+            base: 8.0,
+            kappa: 32.0,
+            min_luminance: 0.05,
+        }
+    }
+}
+
+impl RwmcParams {
+    pub fn validate(&self) -> Result<(), String> {
+        let ok = |v: f64| v.is_finite() && v > 0.0;
+        if !(2..=32).contains(&self.cascades) {
+            return Err(format!(
+                "--rwmc-cascades must be in 2..=32 (got {})",
+                self.cascades
+            ));
+        }
+        if !(ok(self.start) && ok(self.base) && self.base > 1.0 && ok(self.kappa)) {
+            return Err(
+                "--rwmc-start and --rwmc-kappa must be positive and --rwmc-base above 1".into(),
+            );
+        }
+        if !(self.min_luminance.is_finite() && self.min_luminance >= 0.0) {
+            return Err("--rwmc-min-luminance must be finite and not negative".into());
+        }
+        Ok(())
+    }
+
+    /// Where a sample of luminance `l` goes: cascade i gets `w_lo` of its
+    /// colour and cascade i + 1 gets `w_hi` (paper Eq. 8–9). Between s₀bⁱ
+    /// and s₀bⁱ⁺¹ the split keeps the expected value and is linear in 1/l;
+    /// past the last cascade the upper weight clamps the sample.
+    ///
+    /// ```
+    /// use pathdensity::recon::rwmc::RwmcParams;
+    /// let p = RwmcParams::default();
+    /// assert_eq!(p.split(0.5), (0, 1.0, 0.0)); // below s₀: all in cascade 0
+    /// assert_eq!(p.split(8.0), (1, 1.0, 0.0)); // exactly s₀b: cascade 1
+    /// let (i, lo, hi) = p.split(1e9);          // beyond s₀b⁵: clamped
+    /// assert_eq!((i, lo), (4, 0.0));
+    /// assert_eq!(hi, 8f64.powi(5) / 1e9);
+    /// ```
+    pub fn split(&self, l: f64) -> (usize, f64, f64) {
+        let (mut i, mut lo, mut hi) = (0, self.start, self.start * self.base);
+        while l >= hi && i < self.cascades - 2 {
+            lo = hi;
+            hi *= self.base;
+            i += 1;
+        }
+        let w_lo = if l <= lo {
+            1.0
+        } else if l < hi {
+            ((lo / l - lo / hi) / (1.0 - lo / hi)).max(0.0)
+        } else {
+            0.0
+        };
+        let w_hi = if l < hi {
+            (1.0 - w_lo).max(0.0)
+        } else {
+            hi / l
+        };
+        (i, w_lo, w_hi)
+    }
+}
+
+/// Per pixel (frames × height × width), the S cascades' sums divided by the
+/// pixel's sample count, and that count.
+struct Cascades {
+    width: usize,
+    height: usize,
+    s: usize,
+    /// `layers[px * s + i]`.
+    layers: Vec<[f64; 3]>,
+    count: Vec<u32>,
+}
+
+impl Cascades {
+    fn splat(records: &[Record], h: &Header, p: &RwmcParams) -> Cascades {
+        let pixels = h.pixels() * h.frames as usize;
+        let s = p.cascades;
+        let mut layers = vec![[0.0f64; 3]; pixels * s];
+        let mut count = vec![0u32; pixels];
+        for r in records {
+            if r.validity(h) != Validity::Valid {
+                continue;
+            }
+            let px = r.pixel_index(h);
+            let c = r.rgb().map(|v| v as f64);
+            let (i, w_lo, w_hi) = p.split(luminance(c));
+            for (layer, w) in [(i, w_lo), (i + 1, w_hi)] {
+                let acc = &mut layers[px * s + layer];
+                for ch in 0..3 {
+                    acc[ch] += w * c[ch];
+                }
+            }
+            count[px] += 1;
+        }
+        for (px, &n) in count.iter().enumerate() {
+            if n > 0 {
+                for v in &mut layers[px * s..(px + 1) * s] {
+                    *v = v.map(|x| x / n as f64);
+                }
+            }
+        }
+        Cascades {
+            width: h.width as usize,
+            height: h.height as usize,
+            s,
+            layers,
+            count,
+        }
+    }
+
+    /// Luminance of cascade `i` (per-sample average) of pixel (x, y) of
+    /// frame `f`; 0 outside the film or the cascade range.
+    fn lum(&self, f: usize, x: isize, y: isize, i: isize) -> f64 {
+        if x < 0 || y < 0 || x >= self.width as isize || y >= self.height as isize {
+            return 0.0;
+        }
+        if i < 0 || i >= self.s as isize {
+            return 0.0;
+        }
+        let px = (f * self.height + y as usize) * self.width + x as usize;
+        luminance(self.layers[px * self.s + i as usize])
+    }
+}
+
+/// The rwmc image: cascades splatted, then reweighted pixel by pixel
+/// (paper §5). Pixels without samples are 0.
+pub fn rwmc(records: &[Record], h: &Header, p: &RwmcParams) -> Image {
+    let cas = Cascades::splat(records, h, p);
+    let (w, ht, s) = (cas.width, cas.height, cas.s);
+    let inv_kappa = 1.0 / p.kappa;
+    // mix(mix(1, b, 0.6), 1, clamp(1/κ, 0, 1)): up to ~b more energy in one
+    // sample is accepted relative to the pixel's brightness so far.
+    let mix = |a: f64, b: f64, t: f64| a * (1.0 - t) + b * t;
+    let colour_slack = mix(mix(1.0, p.base, 0.6), 1.0, inv_kappa.clamp(0.0, 1.0));
+    let data: Vec<[f64; 3]> = (0..cas.count.len())
+        .into_par_iter()
+        .map(|px| {
+            let n = cas.count[px];
+            if n == 0 {
+                return [0.0; 3];
+            }
+            let (f, rest) = (px / (w * ht), px % (w * ht));
+            let (x, y) = ((rest % w) as isize, (rest / w) as isize);
+            let mut out = [0.0f64; 3];
+            for i in 0..s {
+                let scale = n as f64 / (p.kappa * p.base.powi(i as i32));
+                // R(r): luminance of the (2r + 1)² window mean of cascade i
+                // and its neighbours, brightness-normalised (Eq. 12).
+                let reliability = |r: isize| {
+                    let mut sum = 0.0;
+                    for dy in -r..=r {
+                        for dx in -r..=r {
+                            let (qx, qy) = (x + dx, y + dy);
+                            let ii = i as isize;
+                            sum += cas.lum(f, qx, qy, ii)
+                                + cas.lum(f, qx, qy, ii - 1) * p.base
+                                + cas.lum(f, qx, qy, ii + 1) / p.base;
+                        }
+                    }
+                    scale * sum / ((2 * r + 1) * (2 * r + 1)) as f64
+                };
+                let global = reliability(1) - inv_kappa;
+                let counted = if global >= 0.0 {
+                    reliability(0) - inv_kappa
+                } else {
+                    global
+                };
+                let colour = (luminance(out) * scale).max(p.min_luminance * scale) * colour_slack;
+                let weight = ((counted + colour) * 0.5).clamp(0.0, 1.0);
+                let c = cas.layers[px * s + i];
+                for ch in 0..3 {
+                    out[ch] += weight * c[ch];
+                }
+            }
+            out
+        })
+        .collect();
+    let mut img = Image::for_header(h);
+    img.data = data;
+    img
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_split_keeps_every_sample_whole_inside_the_cascade_range() {
+        let p = RwmcParams::default();
+        for l in [0.0, 0.3, 1.0, 1.5, 7.9, 8.0, 100.0, 4000.0, 32767.0] {
+            let (i, lo, hi) = p.split(l);
+            assert!(i <= 4);
+            assert!((lo + hi - 1.0).abs() < 1e-12, "l {l}: {lo} + {hi}");
+            // Expected value kept: the split is exact in colour.
+            assert!(lo >= 0.0 && hi >= 0.0);
+        }
+        // l = 2 between s₀ = 1 and 8: w_lo = (1/2 − 1/8) / (1 − 1/8) = 3/7.
+        let (i, lo, hi) = p.split(2.0);
+        assert_eq!(i, 0);
+        assert!((lo - 3.0 / 7.0).abs() < 1e-15 && (hi - 4.0 / 7.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn parameters_are_checked() {
+        assert!(RwmcParams::default().validate().is_ok());
+        for bad in [
+            RwmcParams {
+                cascades: 1,
+                ..RwmcParams::default()
+            },
+            RwmcParams {
+                base: 1.0,
+                ..RwmcParams::default()
+            },
+            RwmcParams {
+                kappa: 0.0,
+                ..RwmcParams::default()
+            },
+            RwmcParams {
+                start: f64::NAN,
+                ..RwmcParams::default()
+            },
+            RwmcParams {
+                min_luminance: -1.0,
+                ..RwmcParams::default()
+            },
+        ] {
+            assert!(bad.validate().is_err(), "{bad:?}");
+        }
+    }
+}
