@@ -183,7 +183,10 @@ pub fn rwmc(records: &[Record], h: &Header, p: &RwmcParams) -> Image {
             let (x, y) = ((rest % w) as isize, (rest / w) as isize);
             let mut out = [0.0f64; 3];
             for i in 0..s {
-                let scale = n as f64 / (p.kappa * p.base.powi(i as i32));
+                // N / (κ s₀ bⁱ): the authors' viewer divides by the
+                // cascade's start luminance s₀bⁱ, not bⁱ alone, so s₀ sets
+                // the brightness at which κ samples make a feature reliable.
+                let scale = n as f64 / (p.kappa * p.start * p.base.powi(i as i32));
                 // R(r): luminance of the (2r + 1)² window mean of cascade i
                 // and its neighbours, brightness-normalised (Eq. 12).
                 let reliability = |r: isize| {
