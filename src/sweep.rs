@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use indicatif::ProgressBar;
+use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use crate::commands::filter::{FilterOptions, filter};
@@ -339,6 +340,15 @@ impl Sweep {
     /// RMS against wall time: every configuration, the Pareto front joined,
     /// the baselines as labelled points. SVG text.
     pub fn plot_time(&self) -> Result<String, String> {
+        to_svg(PLOT_SIZE, |root| self.chart_time(root))
+    }
+
+    /// [`Sweep::plot_time`] as PNG bytes.
+    pub fn plot_time_png(&self) -> Result<Vec<u8>, String> {
+        to_png(PLOT_SIZE, |root| self.chart_time(root))
+    }
+
+    fn chart_time<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> Result<(), String> {
         let pts: Vec<(f64, f64)> = self.ok_rows().map(|(r, m)| (r.seconds, m.rms)).collect();
         let all_t: Vec<f64> = pts
             .iter()
@@ -353,10 +363,8 @@ impl Sweep {
         let t_min = all_t.iter().copied().fold(f64::INFINITY, f64::min) / 1.5;
         let t_max = all_t.iter().copied().fold(1e-3, f64::max) * 1.5;
         let e_max = all_e.fold(1e-6, f64::max) * 1.1;
-        let mut svg = String::new();
         {
             let e = |e: DrawingAreaErrorKind<_>| e.to_string();
-            let root = SVGBackend::with_string(&mut svg, (800, 500)).into_drawing_area();
             root.fill(&WHITE).map_err(e)?;
             let mut chart = ChartBuilder::on(&root)
                 .caption(
@@ -407,12 +415,21 @@ impl Sweep {
                 .map_err(e)?;
             root.present().map_err(e)?;
         }
-        Ok(svg)
+        Ok(())
     }
 
     /// RMS against k, one line per σ_color, at σ_image = 3 (or the first
     /// σ_image swept) and the first white swept. SVG text.
     pub fn plot_k(&self) -> Result<String, String> {
+        to_svg(PLOT_SIZE, |root| self.chart_k(root))
+    }
+
+    /// [`Sweep::plot_k`] as PNG bytes.
+    pub fn plot_k_png(&self) -> Result<Vec<u8>, String> {
+        to_png(PLOT_SIZE, |root| self.chart_k(root))
+    }
+
+    fn chart_k<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> Result<(), String> {
         let si = if self.rows.iter().any(|r| r.sigma_image == 3.0) {
             3.0
         } else {
@@ -436,10 +453,8 @@ impl Sweep {
         }
         let k_max = self.rows.iter().map(|r| r.k).max().unwrap_or(1).max(2) as f64 * 1.5;
         let e_max = self.ok_rows().map(|(_, m)| m.rms).fold(1e-6, f64::max) * 1.1;
-        let mut svg = String::new();
         {
             let e = |e: DrawingAreaErrorKind<_>| e.to_string();
-            let root = SVGBackend::with_string(&mut svg, (800, 500)).into_drawing_area();
             root.fill(&WHITE).map_err(e)?;
             let mut chart = ChartBuilder::on(&root)
                 .caption(
@@ -487,8 +502,33 @@ impl Sweep {
                 .map_err(e)?;
             root.present().map_err(e)?;
         }
-        Ok(svg)
+        Ok(())
     }
+}
+
+const PLOT_SIZE: (u32, u32) = (800, 500);
+
+/// Draws a chart as SVG text.
+fn to_svg(
+    size: (u32, u32),
+    draw: impl FnOnce(DrawingArea<SVGBackend, Shift>) -> Result<(), String>,
+) -> Result<String, String> {
+    crate::report::plots::register_fonts();
+    let mut svg = String::new();
+    draw(SVGBackend::with_string(&mut svg, size).into_drawing_area())?;
+    Ok(svg)
+}
+
+/// Draws a chart as PNG bytes (RGB, the embedded font).
+fn to_png(
+    size: (u32, u32),
+    draw: impl FnOnce(DrawingArea<BitMapBackend, Shift>) -> Result<(), String>,
+) -> Result<Vec<u8>, String> {
+    crate::report::plots::register_fonts();
+    let mut buf = vec![0u8; size.0 as usize * size.1 as usize * 3];
+    draw(BitMapBackend::with_buffer(&mut buf, size).into_drawing_area())?;
+    let img = image::RgbImage::from_raw(size.0, size.1, buf).expect("the buffer fits the size");
+    crate::io::png::encode(&img).map_err(|e| e.to_string())
 }
 
 /// One prefix of the equal-time comparison.

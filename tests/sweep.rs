@@ -102,6 +102,13 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
                 .contains("<svg")
         );
     }
+    // The PNG plots decode, at the plot size, and are not blank.
+    for f in ["rms_vs_time.png", "rms_vs_k.png"] {
+        let img = image::open(out.join(f)).unwrap().to_rgb8();
+        assert_eq!(img.dimensions(), (800, 500));
+        let dark = img.pixels().filter(|p| p.0.iter().all(|&c| c < 80)).count();
+        assert!(dark > 1000, "{f}: {dark} dark pixels");
+    }
     // The Pareto front: non-empty, only successful rows, none dominated.
     let front = s.pareto();
     assert!(!front.is_empty());

@@ -1,5 +1,5 @@
 //! `pathdensity sweep`: the filter over a grid of parameters, written as
-//! `sweep.csv`, `sweep.json` and two SVG plots.
+//! `sweep.csv`, `sweep.json` and two plots, each as SVG and PNG.
 
 use anyhow::{Result, anyhow};
 
@@ -14,12 +14,12 @@ pub fn sweep(o: &SweepOptions) -> Result<Sweep> {
     atomic::write_bytes(&dir.join("sweep.csv"), s.csv().as_bytes())?;
     let json = serde_json::to_vec_pretty(&s).expect("a sweep serialises");
     atomic::write_bytes(&dir.join("sweep.json"), &json)?;
-    let plot = |r: Result<String, String>| r.map_err(|e| anyhow!("cannot draw a plot: {e}"));
-    atomic::write_bytes(
-        &dir.join("rms_vs_time.svg"),
-        plot(s.plot_time())?.as_bytes(),
-    )?;
-    atomic::write_bytes(&dir.join("rms_vs_k.svg"), plot(s.plot_k())?.as_bytes())?;
+    let plot = |r: Result<Vec<u8>, String>| r.map_err(|e| anyhow!("cannot draw a plot: {e}"));
+    let svg = |r: Result<String, String>| plot(r.map(String::into_bytes));
+    atomic::write_bytes(&dir.join("rms_vs_time.svg"), &svg(s.plot_time())?)?;
+    atomic::write_bytes(&dir.join("rms_vs_time.png"), &plot(s.plot_time_png())?)?;
+    atomic::write_bytes(&dir.join("rms_vs_k.svg"), &svg(s.plot_k())?)?;
+    atomic::write_bytes(&dir.join("rms_vs_k.png"), &plot(s.plot_k_png())?)?;
     Ok(s)
 }
 

@@ -4,6 +4,23 @@
 use plotters::prelude::*;
 
 use crate::density::Decision;
+
+/// The font every plot's text is set in: DejaVu Sans, embedded (its licence
+/// is in assets/fonts/LICENSE) so that PNG plots need no system font and SVG
+/// text is measured the same on every machine.
+static DEJAVU_SANS: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+
+/// Registers the embedded font as plotters' "sans-serif"; call before any
+/// chart (cheap after the first call).
+pub fn register_fonts() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        for style in [FontStyle::Normal, FontStyle::Bold] {
+            // The font is embedded and known to parse.
+            let _ = plotters::style::register_font("sans-serif", style, DEJAVU_SANS);
+        }
+    });
+}
 use crate::dump::{Header, Record, Validity};
 use crate::joint::lab::luminance;
 use crate::recon::Image;
@@ -103,6 +120,7 @@ pub fn slice_svg(
     let y_max = acc.iter().chain(&rej).map(|p| p.1).fold(1.0f64, f64::max) * 2.0;
     let mut svg = String::new();
     {
+        register_fonts();
         let root = SVGBackend::with_string(&mut svg, (900, 420)).into_drawing_area();
         let e = |e: DrawingAreaErrorKind<_>| e.to_string();
         root.fill(&WHITE).map_err(e)?;
