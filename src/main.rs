@@ -167,6 +167,12 @@ enum Command {
         /// The dump's render time (the `render` command prints it).
         #[arg(long)]
         render_seconds: Option<f64>,
+        /// Group counts of the mon and gmon baselines.
+        #[arg(long, value_delimiter = ',', default_values_t = [11])]
+        mon_groups: Vec<usize>,
+        /// κ values of the rwmc baseline.
+        #[arg(long, value_delimiter = ',', default_values_t = [32.0])]
+        rwmc_kappa: Vec<f64>,
     },
     /// Re-run every regression fixture and compare with its expectations.
     Regress {
@@ -315,6 +321,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             threads,
             equal_time,
             render_seconds,
+            mon_groups,
+            rwmc_kappa,
         } => {
             let mut o = SweepOptions::new(dump, reference, out);
             o.ks = k;
@@ -325,6 +333,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             o.recon = recon.into();
             o.exposure = exposure;
             o.threads = threads;
+            o.mon_groups = mon_groups;
+            o.rwmc_kappas = rwmc_kappa;
             match render_seconds.filter(|_| equal_time) {
                 Some(secs) => print!("{}", sweep::equal_time(&o, secs)?),
                 None => print!("{}", sweep::table(&sweep::sweep(&o)?)),

@@ -19,7 +19,9 @@ use crate::joint::JointSpace;
 use crate::joint::white::White;
 use crate::methods::Method;
 use crate::metrics::{self, Metrics};
-use crate::recon::{self, Image, ReconFilter};
+use crate::recon::groups::PixelGroups;
+use crate::recon::rwmc::{self, RwmcParams};
+use crate::recon::{self, Image, ReconFilter, mon};
 
 #[derive(Clone, Debug)]
 pub struct SweepOptions {
@@ -35,6 +37,10 @@ pub struct SweepOptions {
     pub exposure: f64,
     /// Worker threads; 0 means one per core.
     pub threads: usize,
+    /// Group counts of the median-of-means baselines (mon, gmon).
+    pub mon_groups: Vec<usize>,
+    /// κ values of the rwmc baseline (its other parameters at defaults).
+    pub rwmc_kappas: Vec<f64>,
 }
 
 impl SweepOptions {
@@ -56,6 +62,8 @@ impl SweepOptions {
             recon: ReconFilter::Box,
             exposure: 1.0,
             threads: 0,
+            mon_groups: vec![crate::recon::mon::DEFAULT_GROUPS],
+            rwmc_kappas: vec![RwmcParams::default().kappa],
         }
     }
 }
@@ -140,35 +148,64 @@ pub fn run(o: &SweepOptions, progress: &ProgressBar) -> Result<Sweep> {
     // The baselines, once: the filter command at the paper's defaults.
     let mut fo = FilterOptions::new(&o.dump, o.out_dir.join("baselines"));
     fo.reference = Some(o.reference.clone());
-    fo.methods = vec![
-        Method::Median,
-        Method::Trimmed,
-        Method::Bilateral,
-        Method::Mon,
-        Method::Gmon,
-        Method::Rwmc,
-    ];
+    fo.methods = vec![Method::Median, Method::Trimmed, Method::Bilateral];
     fo.html = false;
     fo.recon = o.recon;
     fo.exposure = o.exposure;
     fo.threads = o.threads;
+    if o.mon_groups.is_empty() || o.mon_groups.contains(&0) {
+        bail!("--mon-groups needs values of at least 1");
+    }
+    for &kappa in &o.rwmc_kappas {
+        RwmcParams {
+            kappa,
+            ..RwmcParams::default()
+        }
+        .validate()
+        .map_err(anyhow::Error::msg)?;
+    }
     let base = filter(&fo)?;
-    let baselines = [
-        "mean",
-        "median",
-        "trimmed",
-        "bilateral",
-        "mon",
-        "gmon",
-        "rwmc",
-    ]
-    .iter()
-    .map(|&m| Baseline {
-        method: m.to_string(),
-        seconds: base.method_seconds[m],
-        metrics: base.metrics[m].pooled,
-    })
-    .collect();
+    let mut baselines: Vec<Baseline> = ["mean", "median", "trimmed", "bilateral"]
+        .iter()
+        .map(|&m| Baseline {
+            method: m.to_string(),
+            seconds: base.method_seconds[m],
+            metrics: base.metrics[m].pooled,
+        })
+        .collect();
+    // The peer methods once per value of their swept parameter, each
+    // labelled with it.
+    let compare = |img: &Image| metrics::compare(img, &reference, o.exposure).pooled;
+    pool.install(|| {
+        let t = Instant::now();
+        let groups = PixelGroups::new(records, &h);
+        let group_seconds = t.elapsed().as_secs_f64();
+        for &g in &o.mon_groups {
+            let t = Instant::now();
+            let m = mon::mon_images(&groups, &h, g);
+            let seconds = group_seconds + t.elapsed().as_secs_f64();
+            for (name, img) in [("mon", &m.mon), ("gmon", &m.gmon)] {
+                baselines.push(Baseline {
+                    method: format!("{name} groups={g}"),
+                    seconds,
+                    metrics: compare(img),
+                });
+            }
+        }
+        for &kappa in &o.rwmc_kappas {
+            let t = Instant::now();
+            let p = RwmcParams {
+                kappa,
+                ..RwmcParams::default()
+            };
+            let img = rwmc::rwmc(records, &h, &p);
+            baselines.push(Baseline {
+                method: format!("rwmc kappa={kappa}"),
+                seconds: t.elapsed().as_secs_f64(),
+                metrics: compare(&img),
+            });
+        }
+    });
 
     let valid = base.counts.valid;
     let configs = grid(o);

@@ -42,6 +42,8 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
     o.sigma_colors = vec![50.0, 100.0];
     o.sigma_images = vec![3.0, 0.0];
     o.whites = vec![White::Fixed(1.0), White::Auto];
+    o.mon_groups = vec![3, 11];
+    o.rwmc_kappas = vec![2.0, 32.0];
     let s = sweep(&o).unwrap();
     assert_eq!(s.rows.len(), 3 * 2 * 2 * 2);
     let mut n = 0;
@@ -83,14 +85,31 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
             "median",
             "trimmed",
             "bilateral",
-            "mon",
-            "gmon",
-            "rwmc"
+            "mon groups=3",
+            "gmon groups=3",
+            "mon groups=11",
+            "gmon groups=11",
+            "rwmc kappa=2",
+            "rwmc kappa=32"
         ]
     );
 
+    // The labelled peer baselines are the same images `filter` makes with
+    // those parameters.
+    let mut f = pathdensity::commands::filter::FilterOptions::new(&dump, dir.path().join("f"));
+    f.reference = Some(dir.path().join("ref.exr"));
+    f.methods = vec![
+        pathdensity::methods::Method::Mon,
+        pathdensity::methods::Method::Rwmc,
+    ];
+    f.html = false;
+    let fr = pathdensity::commands::filter::filter(&f).unwrap();
+    let by = |n: &str| s.baselines.iter().find(|b| b.method == n).unwrap().metrics;
+    assert_eq!(by("mon groups=11"), fr.metrics["mon"].pooled);
+    assert_eq!(by("rwmc kappa=32"), fr.metrics["rwmc"].pooled);
+    assert_ne!(by("rwmc kappa=2"), by("rwmc kappa=32"));
     let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
-    assert_eq!(csv.lines().count(), 1 + 24 + 7);
+    assert_eq!(csv.lines().count(), 1 + 24 + 10);
     assert_eq!(csv.matches("failed:").count(), 16);
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("sweep.json")).unwrap()).unwrap();
