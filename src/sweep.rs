@@ -21,7 +21,7 @@ use crate::methods::Method;
 use crate::metrics::{self, Metrics};
 use crate::recon::groups::PixelGroups;
 use crate::recon::rwmc::{self, RwmcParams};
-use crate::recon::{self, Image, ReconFilter, mon};
+use crate::recon::{self, Image, ReconFilter, energy, mon};
 
 #[derive(Clone, Debug)]
 pub struct SweepOptions {
@@ -581,6 +581,12 @@ pub struct EqualTimeRow {
     pub mean_spp: u32,
     pub mean_seconds: f64,
     pub mean: Metrics,
+    /// The energy-aware filter at `spp` passes (its spread costs a few
+    /// milliseconds, counted in `filtered_seconds`).
+    pub filtered_energy: Metrics,
+    /// mon, gmon and rwmc at `mean_spp` passes: their cost is a small
+    /// fraction of the render time, so equal time is (nearly) equal samples.
+    pub peers: Vec<(String, Metrics)>,
 }
 
 /// The equal-time comparison on a pass-major still, for one configuration
@@ -617,10 +623,29 @@ pub fn equal_time(
         ph.sample_count = m as u64 * pixels as u64;
         (ph, &dump.records()[..m as usize * pixels])
     };
-    let mean_of = |m: u32| {
+    let compare = |img: &Image| metrics::compare(img, &reference, o.exposure).pooled;
+    let groups_m = o.mon_groups.first().copied().unwrap_or(mon::DEFAULT_GROUPS);
+    let rwmc_p = RwmcParams {
+        kappa: o.rwmc_kappas.first().copied().unwrap_or(32.0),
+        ..RwmcParams::default()
+    };
+    rwmc_p.validate().map_err(anyhow::Error::msg)?;
+    if groups_m == 0 {
+        bail!("--mon-groups needs values of at least 1");
+    }
+    // The mean and the peer estimators of the first m passes.
+    let plain = |m: u32| {
         let (ph, recs) = prefix(m);
         let rec = recon::reconstruct(recs, &ph, o.recon, |_| true);
-        metrics::compare(&rec.mean, &reference, o.exposure).pooled
+        let g = PixelGroups::new(recs, &ph);
+        let mm = mon::mon_images(&g, &ph, groups_m);
+        let rw = rwmc::rwmc(recs, &ph, &rwmc_p);
+        let peers = vec![
+            (format!("mon groups={groups_m}"), compare(&mm.mon)),
+            (format!("gmon groups={groups_m}"), compare(&mm.gmon)),
+            (format!("rwmc kappa={}", rwmc_p.kappa), compare(&rw)),
+        ];
+        (compare(&rec.mean), peers)
     };
     // One configuration: a single value given is used, a list (such as
     // the default grid) means the paper's default.
@@ -649,22 +674,33 @@ pub fn equal_time(
     for m in ms {
         let (ph, recs) = prefix(m);
         let t = Instant::now();
-        let (filtered, filter_secs) = pool.install(|| {
+        let (filtered, filter_secs, energy_aware) = pool.install(|| {
             let result = density::run(recs, &ph, &params, &ProgressBar::hidden());
             let rec = recon::reconstruct(recs, &ph, o.recon, |i| {
                 Decision::accepted(result.decisions[i])
             });
-            (rec.filtered, t.elapsed().as_secs_f64())
+            let secs = t.elapsed().as_secs_f64();
+            let removed = energy::removed(&rec.mean, &rec.filtered);
+            let ea = energy::energy_aware(
+                &rec.filtered,
+                &removed,
+                &rec.occupancy,
+                energy::DEFAULT_SPREAD_SIGMA,
+            );
+            (rec.filtered, secs, ea)
         });
         let filtered_seconds = m as f64 * per_pass + filter_secs;
         let mean_spp = ((filtered_seconds / per_pass).floor() as u32).clamp(1, h.spp);
+        let (mean, peers) = pool.install(|| plain(mean_spp));
         rows.push(EqualTimeRow {
             spp: m,
             filtered_seconds,
-            filtered: metrics::compare(&filtered, &reference, o.exposure).pooled,
+            filtered: compare(&filtered),
             mean_spp,
             mean_seconds: mean_spp as f64 * per_pass,
-            mean: mean_of(mean_spp),
+            mean,
+            filtered_energy: compare(&energy_aware),
+            peers,
         });
         progress.inc(1);
     }
@@ -675,18 +711,21 @@ pub fn equal_time(
 /// The equal-time table as text (also written as `equal_time.csv`).
 pub fn equal_time_csv(rows: &[EqualTimeRow]) -> String {
     let mut s = String::from("spp,method,seconds,rms,rms_display\n");
+    let line = |spp: u32, name: &str, secs: f64, m: &Metrics| {
+        format!("{spp},{name},{secs},{},{}\n", m.rms, m.rms_display)
+    };
     for r in rows {
-        s += &format!(
-            "{},filtered,{},{},{}\n{},mean,{},{},{}\n",
+        s += &line(r.spp, "filtered", r.filtered_seconds, &r.filtered);
+        s += &line(
             r.spp,
+            "filtered_energy",
             r.filtered_seconds,
-            r.filtered.rms,
-            r.filtered.rms_display,
-            r.mean_spp,
-            r.mean_seconds,
-            r.mean.rms,
-            r.mean.rms_display
+            &r.filtered_energy,
         );
+        s += &line(r.mean_spp, "mean", r.mean_seconds, &r.mean);
+        for (name, m) in &r.peers {
+            s += &line(r.mean_spp, name, r.mean_seconds, m);
+        }
     }
     s
 }

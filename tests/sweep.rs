@@ -169,7 +169,14 @@ fn equal_time_rows_are_prefix_renders_at_matching_time() {
         w.finish().unwrap();
         let mut f = FilterOptions::new(&path, dir.path().join(format!("f{m}")));
         f.reference = Some(fixture.join("reference.exr"));
-        f.methods = vec![Method::Mean, Method::Filtered];
+        f.methods = vec![
+            Method::Mean,
+            Method::Filtered,
+            Method::FilteredEnergy,
+            Method::Mon,
+            Method::Gmon,
+            Method::Rwmc,
+        ];
         f.html = false;
         filter(&f).unwrap().metrics[name].pooled
     };
@@ -183,6 +190,16 @@ fn equal_time_rows_are_prefix_renders_at_matching_time() {
         assert_eq!(r.mean_spp, r.spp);
         assert_eq!(r.filtered, prefix_metrics(r.spp, "filtered"), "{r:?}");
         assert_eq!(r.mean, prefix_metrics(r.mean_spp, "mean"), "{r:?}");
+        assert_eq!(
+            r.filtered_energy,
+            prefix_metrics(r.spp, "filtered_energy"),
+            "{r:?}"
+        );
+        let names: Vec<&str> = r.peers.iter().map(|p| p.0.as_str()).collect();
+        assert_eq!(names, ["mon groups=11", "gmon groups=11", "rwmc kappa=32"]);
+        for ((_, m), method) in r.peers.iter().zip(["mon", "gmon", "rwmc"]) {
+            assert_eq!(*m, prefix_metrics(r.mean_spp, method), "{method}");
+        }
         assert!(r.mean_seconds <= r.filtered_seconds);
     }
     // Rendering is nearly free: the filter's time buys the mean every pass.

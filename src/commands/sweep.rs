@@ -4,6 +4,7 @@
 use anyhow::{Result, anyhow};
 
 use crate::io::atomic;
+use crate::metrics::Metrics;
 use crate::sweep::{self, Sweep, SweepOptions};
 
 pub fn sweep(o: &SweepOptions) -> Result<Sweep> {
@@ -82,23 +83,40 @@ pub fn equal_time(o: &SweepOptions, render_seconds: f64) -> Result<String> {
     let json = serde_json::to_vec_pretty(&rows).expect("rows serialise");
     atomic::write_bytes(&dir.join("equal_time.json"), &json)?;
     let mut t = format!(
-        "{:>6} {:>12} {:>10} {:>10} | {:>6} {:>12} {:>10} {:>10} | winner\n",
-        "spp", "filtered s", "RMS", "RMS disp", "spp", "mean s", "RMS", "RMS disp"
+        "{:>5} {:>9} {:>17} {:>17} | {:>5} {:>9} {:>17} {:>29} | winner (RMS, display)\n",
+        "spp", "total s", "filtered", "filtered_energy", "spp", "render s", "mean", "best peer"
     );
+    let pair = |m: &Metrics| format!("{:.5}/{:.5}", m.rms, m.rms_display);
     for r in &rows {
-        let win = |a: f64, b: f64| if a < b { "filtered" } else { "mean" };
+        let best_peer = r
+            .peers
+            .iter()
+            .min_by(|a, b| a.1.rms.total_cmp(&b.1.rms))
+            .expect("three peers");
+        let mut all: Vec<(&str, &Metrics)> = vec![
+            ("filtered", &r.filtered),
+            ("filtered_energy", &r.filtered_energy),
+            ("mean", &r.mean),
+        ];
+        all.extend(r.peers.iter().map(|(n, m)| (n.as_str(), m)));
+        let win = |f: fn(&Metrics) -> f64| {
+            all.iter()
+                .min_by(|a, b| f(a.1).total_cmp(&f(b.1)))
+                .map(|e| e.0)
+                .unwrap_or("")
+        };
         t += &format!(
-            "{:>6} {:>12.3} {:>10.6} {:>10.5} | {:>6} {:>12.3} {:>10.6} {:>10.5} | RMS: {}, display: {}\n",
+            "{:>5} {:>9.3} {:>17} {:>17} | {:>5} {:>9.3} {:>17} {:>29} | {}, {}\n",
             r.spp,
             r.filtered_seconds,
-            r.filtered.rms,
-            r.filtered.rms_display,
+            pair(&r.filtered),
+            pair(&r.filtered_energy),
             r.mean_spp,
             r.mean_seconds,
-            r.mean.rms,
-            r.mean.rms_display,
-            win(r.filtered.rms, r.mean.rms),
-            win(r.filtered.rms_display, r.mean.rms_display)
+            pair(&r.mean),
+            format!("{} {}", best_peer.0, pair(&best_peer.1)),
+            win(|m| m.rms),
+            win(|m| m.rms_display)
         );
     }
     Ok(t)
