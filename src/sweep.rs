@@ -22,6 +22,7 @@ use crate::metrics::{self, Metrics};
 use crate::recon::groups::PixelGroups;
 use crate::recon::rwmc::{self, RwmcParams};
 use crate::recon::{self, Image, ReconFilter, energy, mon};
+use crate::report::plots::{to_png, to_svg};
 
 #[derive(Clone, Debug)]
 pub struct SweepOptions {
@@ -544,29 +545,6 @@ impl Sweep {
 }
 
 const PLOT_SIZE: (u32, u32) = (800, 500);
-
-/// Draws a chart as SVG text.
-fn to_svg(
-    size: (u32, u32),
-    draw: impl FnOnce(DrawingArea<SVGBackend, Shift>) -> Result<(), String>,
-) -> Result<String, String> {
-    crate::report::plots::register_fonts();
-    let mut svg = String::new();
-    draw(SVGBackend::with_string(&mut svg, size).into_drawing_area())?;
-    Ok(svg)
-}
-
-/// Draws a chart as PNG bytes (RGB, the embedded font).
-fn to_png(
-    size: (u32, u32),
-    draw: impl FnOnce(DrawingArea<BitMapBackend, Shift>) -> Result<(), String>,
-) -> Result<Vec<u8>, String> {
-    crate::report::plots::register_fonts();
-    let mut buf = vec![0u8; size.0 as usize * size.1 as usize * 3];
-    draw(BitMapBackend::with_buffer(&mut buf, size).into_drawing_area())?;
-    let img = image::RgbImage::from_raw(size.0, size.1, buf).expect("the buffer fits the size");
-    crate::io::png::encode(&img).map_err(|e| e.to_string())
-}
 
 /// One prefix of the equal-time comparison.
 #[derive(Clone, Debug, serde::Serialize)]

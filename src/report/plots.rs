@@ -1,6 +1,7 @@
 //! The report's pictures that are not images of the scene: the σ map in
 //! false colour (the paper's Figure 6) and the joint-density slice (Figure 5).
 
+use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use crate::density::Decision;
@@ -118,10 +119,7 @@ pub fn slice_svg(
     }
     let step = (acc.len() + rej.len()).div_ceil(SLICE_POINTS).max(1);
     let y_max = acc.iter().chain(&rej).map(|p| p.1).fold(1.0f64, f64::max) * 2.0;
-    let mut svg = String::new();
-    {
-        register_fonts();
-        let root = SVGBackend::with_string(&mut svg, (900, 420)).into_drawing_area();
+    to_svg((900, 420), |root| {
         let e = |e: DrawingAreaErrorKind<_>| e.to_string();
         root.fill(&WHITE).map_err(e)?;
         let mut chart = ChartBuilder::on(&root)
@@ -165,9 +163,31 @@ pub fn slice_svg(
             .border_style(BLACK)
             .draw()
             .map_err(e)?;
-        root.present().map_err(e)?;
-    }
+        root.present().map_err(e)
+    })
+}
+
+/// Draws a chart as SVG text, in the embedded font.
+pub fn to_svg(
+    size: (u32, u32),
+    draw: impl FnOnce(DrawingArea<SVGBackend, Shift>) -> Result<(), String>,
+) -> Result<String, String> {
+    register_fonts();
+    let mut svg = String::new();
+    draw(SVGBackend::with_string(&mut svg, size).into_drawing_area())?;
     Ok(svg)
+}
+
+/// Draws a chart as PNG bytes (RGB, the embedded font).
+pub fn to_png(
+    size: (u32, u32),
+    draw: impl FnOnce(DrawingArea<BitMapBackend, Shift>) -> Result<(), String>,
+) -> Result<Vec<u8>, String> {
+    register_fonts();
+    let mut buf = vec![0u8; size.0 as usize * size.1 as usize * 3];
+    draw(BitMapBackend::with_buffer(&mut buf, size).into_drawing_area())?;
+    let img = image::RgbImage::from_raw(size.0, size.1, buf).expect("the buffer fits the size");
+    crate::io::png::encode(&img).map_err(|e| e.to_string())
 }
 
 #[cfg(test)]
