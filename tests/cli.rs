@@ -96,6 +96,7 @@ fn filter_writes_images_decisions_and_a_report() {
             "mon.exr",
             "mon.png",
             "rejected.exr",
+            "rejected.png",
             "report.html",
             "report.json",
             "rwmc.exr",
@@ -161,7 +162,7 @@ fn every_output_is_bit_identical_for_1_2_and_8_threads() {
                 .into_iter()
                 .filter(|f| !f.starts_with("report."))
                 .collect();
-            assert_eq!(names.len(), 26);
+            assert_eq!(names.len(), 27);
             let mut v: Vec<Vec<u8>> = names
                 .iter()
                 .map(|f| std::fs::read(out.join(f)).unwrap())

@@ -282,6 +282,8 @@ pub fn filter(opts: &FilterOptions) -> Result<FilterReport> {
             let frames = previews(m.name(), tone(img), &mut outputs)?;
             assets.images.push((m.name().to_string(), frames));
         }
+        let frames = previews("rejected", tone(&removed), &mut outputs)?;
+        assets.images.push(("rejected".to_string(), frames));
         if let (Some(img), Some(scale)) = (&sigma_img, sigma_scale) {
             let frames = (0..img.frames)
                 .map(|f| plots::sigma_png(img, f, scale))

@@ -118,6 +118,10 @@ pub fn render(report: &FilterReport, assets: &Assets) -> String {
                 "{name}: RMS {:.4}, RMS display {:.4}",
                 m.pooled.rms, m.pooled.rms_display
             ),
+            None if name == "rejected" => format!(
+                "rejected: mean − filtered, {:.2}% of the mean's energy",
+                100.0 * report.energy_removed.fraction_of_mean
+            ),
             None => name.clone(),
         };
         add(name, &caption, frames, "");
