@@ -108,6 +108,9 @@ struct Cascades {
     s: usize,
     /// `layers[px * s + i]`.
     layers: Vec<[f64; 3]>,
+    /// The luminance of each layer, same indexing (read 3 × 10 times per
+    /// pixel and cascade by the reweighting, so computed once).
+    lums: Vec<f64>,
     count: Vec<u32>,
 }
 
@@ -143,6 +146,7 @@ impl Cascades {
             width: h.width as usize,
             height: h.height as usize,
             s,
+            lums: layers.iter().map(|&c| luminance(c)).collect(),
             layers,
             count,
         }
@@ -158,7 +162,7 @@ impl Cascades {
             return 0.0;
         }
         let px = (f * self.height + y as usize) * self.width + x as usize;
-        luminance(self.layers[px * self.s + i as usize])
+        self.lums[px * self.s + i as usize]
     }
 }
 
@@ -241,6 +245,80 @@ mod tests {
         let (i, lo, hi) = p.split(2.0);
         assert_eq!(i, 0);
         assert!((lo - 3.0 / 7.0).abs() < 1e-15 && (hi - 4.0 / 7.0).abs() < 1e-15);
+    }
+
+    use crate::dump::{Header, Order, Record};
+
+    /// A w × h film with `n` grey samples of value `v` at every pixel
+    /// centre, plus `extra` records.
+    fn film(w: u32, h: u32, n: u32, v: f32, extra: &[Record]) -> (Header, Vec<Record>) {
+        let header = Header {
+            width: w,
+            height: h,
+            frames: 1,
+            spp: 0,
+            sample_count: 0,
+            order: Order::Unspecified,
+            scene: "test".into(),
+            seed: 0,
+            producer: "test".into(),
+        };
+        let mut recs = Vec::new();
+        for y in 0..h {
+            for x in 0..w {
+                for _ in 0..n {
+                    recs.push(Record::new(x as f32 + 0.5, y as f32 + 0.5, 0.0, [v; 3]));
+                }
+            }
+        }
+        recs.extend_from_slice(extra);
+        (header, recs)
+    }
+
+    #[test]
+    fn an_undersampled_lowest_cascade_is_weighted_by_hand_computed_reliability() {
+        // 64 samples of grey 0.25 per pixel, all in cascade 0 (below s₀ = 1).
+        // By hand (paper §5 with the defaults): scale₀ = 64 / (32 · 1 · 1) = 2;
+        // R(1) = R(0) = 2 L (the 3 × 3 mean of a flat film, 4/9 of it at a
+        // corner, still ≥ 1/κ), so the counting term is 2L − 1/32; nothing
+        // is accumulated yet, so the colour term is its floor 0.05 · scale₀
+        // times the slack mix(mix(1, 8, 0.6), 1, 1/32) = 5.2 · 31/32 + 1/32;
+        // the weight is half their sum.
+        let (h, recs) = film(3, 3, 64, 0.25, &[]);
+        let img = rwmc(&recs, &h, &RwmcParams::default());
+        let l = luminance([0.25; 3]);
+        let slack = 5.2 * (31.0 / 32.0) + 1.0 / 32.0;
+        let w0 = (2.0 * l - 1.0 / 32.0 + 0.05 * 2.0 * slack) / 2.0;
+        for px in [0, 4, 8] {
+            for c in 0..3 {
+                assert!(
+                    (img.data[px][c] - w0 * 0.25).abs() < 1e-12,
+                    "{px}: {:?}",
+                    img.data[px]
+                );
+            }
+        }
+        assert!(w0 > 0.48 && w0 < 0.49);
+    }
+
+    #[test]
+    fn a_well_sampled_film_is_its_mean_and_a_lone_firefly_is_suppressed() {
+        // 1024 samples of 0.5: R = 1024 / 32 · 0.5 = 16 ≥ 1, every weight 1.
+        let (h, recs) = film(3, 3, 1024, 0.5, &[]);
+        let img = rwmc(&recs, &h, &RwmcParams::default());
+        assert!(img.data.iter().flatten().all(|&v| (v - 0.5).abs() < 1e-12));
+        // One sample of 5000 in the centre adds 4.88 to its mean; its
+        // cascades (4 and 5) hold one sample, far below κ: nearly all of it
+        // goes.
+        let firefly = Record::new(1.5, 1.5, 0.0, [5000.0; 3]);
+        let (h, recs) = film(3, 3, 1024, 0.5, &[firefly]);
+        let img = rwmc(&recs, &h, &RwmcParams::default());
+        let mean = (1024.0 * 0.5 + 5000.0) / 1025.0;
+        let centre = img.data[4][0];
+        assert!(
+            centre > 0.49 && centre - 0.5 < 0.05 * (mean - 0.5),
+            "{centre} vs mean {mean}"
+        );
     }
 
     #[test]
