@@ -21,7 +21,7 @@ use crate::methods::Method;
 use crate::metrics::{self, Metrics};
 use crate::recon::groups::PixelGroups;
 use crate::recon::rwmc::{self, RwmcParams};
-use crate::recon::{self, Image, ReconFilter, energy, mon};
+use crate::recon::{self, Image, ReconFilter, energy, mon, robust};
 use crate::report::plots::{to_png, to_svg};
 
 #[derive(Clone, Debug)]
@@ -45,6 +45,29 @@ pub struct SweepOptions {
 }
 
 impl SweepOptions {
+    /// The peer methods' swept values, checked: mon/gmon group counts and
+    /// rwmc parameters (κ from the list, the rest the authors' defaults).
+    fn peer_params(&self) -> Result<(Vec<usize>, Vec<RwmcParams>)> {
+        if self.mon_groups.is_empty() || self.mon_groups.contains(&0) {
+            bail!("--mon-groups needs one or more values of at least 1");
+        }
+        if self.rwmc_kappas.is_empty() {
+            bail!("--rwmc-kappa needs one or more values");
+        }
+        let rwmc = self
+            .rwmc_kappas
+            .iter()
+            .map(|&kappa| {
+                let p = RwmcParams {
+                    kappa,
+                    ..RwmcParams::default()
+                };
+                p.validate().map(|_| p).map_err(anyhow::Error::msg)
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok((self.mon_groups.clone(), rwmc))
+    }
+
     /// The default grid: k 5…200, σ_color 25…400, σ_image 1.5…6.
     pub fn new(
         dump: impl Into<PathBuf>,
@@ -149,39 +172,38 @@ pub fn run(o: &SweepOptions, progress: &ProgressBar) -> Result<Sweep> {
     // The baselines, once: the filter command at the paper's defaults.
     let mut fo = FilterOptions::new(&o.dump, o.out_dir.join("baselines"));
     fo.reference = Some(o.reference.clone());
-    fo.methods = vec![Method::Median, Method::Trimmed, Method::Bilateral];
+    fo.methods = vec![Method::Bilateral];
     fo.html = false;
     fo.recon = o.recon;
     fo.exposure = o.exposure;
     fo.threads = o.threads;
-    if o.mon_groups.is_empty() || o.mon_groups.contains(&0) {
-        bail!("--mon-groups needs values of at least 1");
-    }
-    for &kappa in &o.rwmc_kappas {
-        RwmcParams {
-            kappa,
-            ..RwmcParams::default()
-        }
-        .validate()
-        .map_err(anyhow::Error::msg)?;
-    }
+    let (mon_groups, rwmc_params) = o.peer_params()?;
     let base = filter(&fo)?;
-    let mut baselines: Vec<Baseline> = ["mean", "median", "trimmed", "bilateral"]
-        .iter()
-        .map(|&m| Baseline {
-            method: m.to_string(),
-            seconds: base.method_seconds[m],
-            metrics: base.metrics[m].pooled,
-        })
-        .collect();
-    // The peer methods once per value of their swept parameter, each
-    // labelled with it.
+    let from_filter = |m: &str| Baseline {
+        method: m.to_string(),
+        seconds: base.method_seconds[m],
+        metrics: base.metrics[m].pooled,
+    };
+    let mut baselines = vec![from_filter("mean")];
+    // The per-pixel estimators share one grouping of the samples; the peer
+    // methods run once per value of their swept parameter, labelled with it.
     let compare = |img: &Image| metrics::compare(img, &reference, o.exposure).pooled;
     pool.install(|| {
         let t = Instant::now();
         let groups = PixelGroups::new(records, &h);
         let group_seconds = t.elapsed().as_secs_f64();
-        for &g in &o.mon_groups {
+        let t = Instant::now();
+        let r = robust::robust_images(&groups, &h, fo.alpha);
+        let seconds = group_seconds + t.elapsed().as_secs_f64();
+        for (name, img) in [("median", &r.median), ("trimmed", &r.trimmed)] {
+            baselines.push(Baseline {
+                method: name.into(),
+                seconds,
+                metrics: compare(img),
+            });
+        }
+        baselines.push(from_filter("bilateral"));
+        for &g in &mon_groups {
             let t = Instant::now();
             let m = mon::mon_images(&groups, &h, g);
             let seconds = group_seconds + t.elapsed().as_secs_f64();
@@ -193,15 +215,11 @@ pub fn run(o: &SweepOptions, progress: &ProgressBar) -> Result<Sweep> {
                 });
             }
         }
-        for &kappa in &o.rwmc_kappas {
+        for p in &rwmc_params {
             let t = Instant::now();
-            let p = RwmcParams {
-                kappa,
-                ..RwmcParams::default()
-            };
-            let img = rwmc::rwmc(records, &h, &p);
+            let img = rwmc::rwmc(records, &h, p);
             baselines.push(Baseline {
-                method: format!("rwmc kappa={kappa}"),
+                method: format!("rwmc kappa={}", p.kappa),
                 seconds: t.elapsed().as_secs_f64(),
                 metrics: compare(&img),
             });
@@ -401,58 +419,56 @@ impl Sweep {
         let t_min = all_t.iter().copied().fold(f64::INFINITY, f64::min) / 1.5;
         let t_max = all_t.iter().copied().fold(1e-3, f64::max) * 1.5;
         let e_max = all_e.fold(1e-6, f64::max) * 1.1;
-        {
-            let e = |e: DrawingAreaErrorKind<_>| e.to_string();
-            root.fill(&WHITE).map_err(e)?;
-            let mut chart = ChartBuilder::on(&root)
-                .caption(
-                    "RMS against wall time (filter + reconstruction)",
-                    ("sans-serif", 18),
-                )
-                .margin(12)
-                .x_label_area_size(40)
-                .y_label_area_size(60)
-                .build_cartesian_2d((t_min..t_max).log_scale(), 0f64..e_max)
+        let e = |e: DrawingAreaErrorKind<_>| e.to_string();
+        root.fill(&WHITE).map_err(e)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(
+                "RMS against wall time (filter + reconstruction)",
+                ("sans-serif", 18),
+            )
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d((t_min..t_max).log_scale(), 0f64..e_max)
+            .map_err(e)?;
+        chart
+            .configure_mesh()
+            .x_desc("seconds (log scale)")
+            .y_desc("RMS")
+            .draw()
+            .map_err(e)?;
+        let blue = RGBColor(40, 90, 200);
+        chart
+            .draw_series(pts.iter().map(|&p| Circle::new(p, 3, blue.filled())))
+            .map_err(e)?
+            .label("configurations")
+            .legend(move |p| Circle::new(p, 3, blue.filled()));
+        let front: Vec<(f64, f64)> = self
+            .pareto()
+            .iter()
+            .map(|&i| (self.rows[i].seconds, self.rows[i].metrics.unwrap().rms))
+            .collect();
+        chart
+            .draw_series(LineSeries::new(front, RED.stroke_width(2)))
+            .map_err(e)?
+            .label("Pareto front")
+            .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], RED));
+        for b in &self.baselines {
+            let p = (b.seconds.max(1e-4), b.metrics.rms);
+            chart
+                .draw_series([TriangleMarker::new(p, 6, BLACK.filled())])
                 .map_err(e)?;
             chart
-                .configure_mesh()
-                .x_desc("seconds (log scale)")
-                .y_desc("RMS")
-                .draw()
+                .draw_series([Text::new(b.method.clone(), p, ("sans-serif", 13))])
                 .map_err(e)?;
-            let blue = RGBColor(40, 90, 200);
-            chart
-                .draw_series(pts.iter().map(|&p| Circle::new(p, 3, blue.filled())))
-                .map_err(e)?
-                .label("configurations")
-                .legend(move |p| Circle::new(p, 3, blue.filled()));
-            let front: Vec<(f64, f64)> = self
-                .pareto()
-                .iter()
-                .map(|&i| (self.rows[i].seconds, self.rows[i].metrics.unwrap().rms))
-                .collect();
-            chart
-                .draw_series(LineSeries::new(front, RED.stroke_width(2)))
-                .map_err(e)?
-                .label("Pareto front")
-                .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], RED));
-            for b in &self.baselines {
-                let p = (b.seconds.max(1e-4), b.metrics.rms);
-                chart
-                    .draw_series([TriangleMarker::new(p, 6, BLACK.filled())])
-                    .map_err(e)?;
-                chart
-                    .draw_series([Text::new(b.method.clone(), p, ("sans-serif", 13))])
-                    .map_err(e)?;
-            }
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .draw()
-                .map_err(e)?;
-            root.present().map_err(e)?;
         }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(e)?;
+        root.present().map_err(e)?;
         Ok(())
     }
 
@@ -491,55 +507,53 @@ impl Sweep {
         }
         let k_max = self.rows.iter().map(|r| r.k).max().unwrap_or(1).max(2) as f64 * 1.5;
         let e_max = self.ok_rows().map(|(_, m)| m.rms).fold(1e-6, f64::max) * 1.1;
-        {
-            let e = |e: DrawingAreaErrorKind<_>| e.to_string();
-            root.fill(&WHITE).map_err(e)?;
-            let mut chart = ChartBuilder::on(&root)
-                .caption(
-                    format!("RMS against k (σ_image {si}, white {white})"),
-                    ("sans-serif", 18),
-                )
-                .margin(12)
-                .x_label_area_size(40)
-                .y_label_area_size(60)
-                .right_y_label_area_size(0)
-                .build_cartesian_2d((1f64..k_max).log_scale(), 0f64..e_max)
-                .map_err(e)?;
+        let e = |e: DrawingAreaErrorKind<_>| e.to_string();
+        root.fill(&WHITE).map_err(e)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(
+                format!("RMS against k (σ_image {si}, white {white})"),
+                ("sans-serif", 18),
+            )
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .right_y_label_area_size(0)
+            .build_cartesian_2d((1f64..k_max).log_scale(), 0f64..e_max)
+            .map_err(e)?;
+        chart
+            .configure_mesh()
+            .x_desc("k")
+            .y_desc("RMS")
+            .draw()
+            .map_err(e)?;
+        for (i, (name, mut pts)) in series.into_iter().enumerate() {
+            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let color = Palette99::pick(i).to_rgba();
             chart
-                .configure_mesh()
-                .x_desc("k")
-                .y_desc("RMS")
-                .draw()
-                .map_err(e)?;
-            for (i, (name, mut pts)) in series.into_iter().enumerate() {
-                pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-                let color = Palette99::pick(i).to_rgba();
-                chart
-                    .draw_series(LineSeries::new(pts, color.stroke_width(2)))
-                    .map_err(e)?
-                    .label(name)
-                    .legend(move |(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], color));
-            }
-            if let Some(mean) = self.baselines.iter().find(|b| b.method == "mean") {
-                let y = mean.metrics.rms;
-                chart
-                    .draw_series(LineSeries::new(
-                        [(1.0, y), (k_max, y)],
-                        BLACK.stroke_width(1),
-                    ))
-                    .map_err(e)?
-                    .label("mean (no filter)")
-                    .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], BLACK));
-            }
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .label_font(("sans-serif", 11))
-                .draw()
-                .map_err(e)?;
-            root.present().map_err(e)?;
+                .draw_series(LineSeries::new(pts, color.stroke_width(2)))
+                .map_err(e)?
+                .label(name)
+                .legend(move |(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], color));
         }
+        if let Some(mean) = self.baselines.iter().find(|b| b.method == "mean") {
+            let y = mean.metrics.rms;
+            chart
+                .draw_series(LineSeries::new(
+                    [(1.0, y), (k_max, y)],
+                    BLACK.stroke_width(1),
+                ))
+                .map_err(e)?
+                .label("mean (no filter)")
+                .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], BLACK));
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 11))
+            .draw()
+            .map_err(e)?;
+        root.present().map_err(e)?;
         Ok(())
     }
 }
@@ -602,15 +616,8 @@ pub fn equal_time(
         (ph, &dump.records()[..m as usize * pixels])
     };
     let compare = |img: &Image| metrics::compare(img, &reference, o.exposure).pooled;
-    let groups_m = o.mon_groups.first().copied().unwrap_or(mon::DEFAULT_GROUPS);
-    let rwmc_p = RwmcParams {
-        kappa: o.rwmc_kappas.first().copied().unwrap_or(32.0),
-        ..RwmcParams::default()
-    };
-    rwmc_p.validate().map_err(anyhow::Error::msg)?;
-    if groups_m == 0 {
-        bail!("--mon-groups needs values of at least 1");
-    }
+    let (mon_groups, rwmc_params) = o.peer_params()?;
+    let (groups_m, rwmc_p) = (mon_groups[0], rwmc_params[0]);
     // The mean and the peer estimators of the first m passes.
     let plain = |m: u32| {
         let (ph, recs) = prefix(m);

@@ -99,12 +99,16 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
     let mut f = pathdensity::commands::filter::FilterOptions::new(&dump, dir.path().join("f"));
     f.reference = Some(dir.path().join("ref.exr"));
     f.methods = vec![
+        pathdensity::methods::Method::Median,
+        pathdensity::methods::Method::Trimmed,
         pathdensity::methods::Method::Mon,
         pathdensity::methods::Method::Rwmc,
     ];
     f.html = false;
     let fr = pathdensity::commands::filter::filter(&f).unwrap();
     let by = |n: &str| s.baselines.iter().find(|b| b.method == n).unwrap().metrics;
+    assert_eq!(by("median"), fr.metrics["median"].pooled);
+    assert_eq!(by("trimmed"), fr.metrics["trimmed"].pooled);
     assert_eq!(by("mon groups=11"), fr.metrics["mon"].pooled);
     assert_eq!(by("rwmc kappa=32"), fr.metrics["rwmc"].pooled);
     assert_ne!(by("rwmc kappa=2"), by("rwmc kappa=32"));
