@@ -6,12 +6,13 @@
 //! Without a browser the test is skipped with a message, unless
 //! `PATHDENSITY_REQUIRE_BROWSER` is set (CI sets it and installs chromium).
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use pathdensity::commands::filter::{FilterOptions, filter};
 use pathdensity::io::exr;
-use pathdensity::recon::{Film, Image, ReconFilter};
 use pathdensity::synth::SynthParams;
 
 fn browser() -> Option<PathBuf> {
@@ -50,18 +51,6 @@ fn headless(browser: &Path, page: &Path, args: &[&str]) -> (String, String) {
     )
 }
 
-/// The mean image of a dense synthetic dump, as a reference.
-fn reference(p: &SynthParams) -> Image {
-    let h = p.header();
-    let mut film = Film::new(&h, ReconFilter::Box);
-    let mut occ = vec![0u32; h.pixels() * h.frames as usize];
-    for r in p.records() {
-        film.splat(&r);
-        occ[r.pixel_index(&h)] += 1;
-    }
-    film.resolve(&occ)
-}
-
 fn check_report(browser: &Path, frames: u32) {
     let dir = tempfile::tempdir().unwrap();
     let p = SynthParams {
@@ -81,7 +70,7 @@ fn check_report(browser: &Path, frames: u32) {
         seed: 99,
         ..p.clone()
     };
-    exr::write_image(dir.path(), "ref", &reference(&dense)).unwrap();
+    exr::write_image(dir.path(), "ref", &common::synth_mean(&dense)).unwrap();
     let out = dir.path().join("out");
     let mut o = FilterOptions::new(&dump, &out);
     o.reference = Some(dir.path().join("ref.exr"));

@@ -1,10 +1,11 @@
 //! The sweep's bookkeeping: every configuration present, in order, failures
 //! recorded with their reason, the baselines once, the files written.
 
+mod common;
+
 use pathdensity::commands::sweep::sweep;
 use pathdensity::io::exr;
 use pathdensity::joint::white::White;
-use pathdensity::recon::{Film, ReconFilter};
 use pathdensity::sweep::SweepOptions;
 use pathdensity::synth::SynthParams;
 
@@ -27,14 +28,7 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
         seed: 9,
         ..p.clone()
     };
-    let h = dense.header();
-    let mut film = Film::new(&h, ReconFilter::Box);
-    let mut occ = vec![0u32; h.pixels()];
-    for r in dense.records() {
-        film.splat(&r);
-        occ[r.pixel_index(&h)] += 1;
-    }
-    exr::write_image(dir.path(), "ref", &film.resolve(&occ)).unwrap();
+    exr::write_image(dir.path(), "ref", &common::synth_mean(&dense)).unwrap();
 
     let out = dir.path().join("sweep");
     let mut o = SweepOptions::new(&dump, dir.path().join("ref.exr"), &out);

@@ -112,3 +112,17 @@ impl Rng {
         (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
     }
 }
+
+/// The mean image of a synthetic dump (dense and firefly-free, it serves
+/// as a reference).
+pub fn synth_mean(p: &pathdensity::synth::SynthParams) -> pathdensity::recon::Image {
+    use pathdensity::recon::{Film, ReconFilter};
+    let h = p.header();
+    let mut film = Film::new(&h, ReconFilter::Box);
+    let mut occ = vec![0u32; h.pixels() * h.frames as usize];
+    for r in p.records() {
+        film.splat(&r);
+        occ[r.pixel_index(&h)] += 1;
+    }
+    film.resolve(&occ)
+}
