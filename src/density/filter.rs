@@ -15,9 +15,9 @@ use rayon::prelude::*;
 use super::index::grid::Grid;
 use super::index::kdtree::KdTree;
 use super::index::{Found, IndexKind, NeighbourIndex};
-use super::sigma::{Goal, KBest, Verdict};
+use super::sigma::{Goal, KBest, Verdict, surely_below_k};
 use crate::dump::{Header, InvalidCounts, Record, Validity};
-use crate::joint::JointSpace;
+use crate::joint::{JointSpace, dist2};
 
 /// The fate of one record, as written by `--decisions` (one byte each).
 #[repr(u8)]
@@ -112,6 +112,13 @@ pub fn run(
     }
 }
 
+/// Accepted without a full search (σ < 1 proven by seeds).
+const ACCEPTED: Found = Found {
+    verdict: Verdict::Accept,
+    bound: 0.0,
+    reach: 0,
+};
+
 /// One record of a batch after the parallel search.
 #[derive(Clone, Copy)]
 struct Slot<const D: usize> {
@@ -123,6 +130,41 @@ struct Slot<const D: usize> {
 }
 
 const SUB_BLOCK: usize = 256;
+
+/// The k nearest stored points of a worker's last full search, tried first
+/// on its next sample: neighbouring samples of a dump mostly share their
+/// neighbours, and k distances are far cheaper than a search. Exact: stored
+/// points never leave T, and any k of them whose σ is provably below 1
+/// prove the sample accepted ([`surely_below_k`]).
+struct Seeds {
+    ids: Vec<u32>,
+}
+
+impl Seeds {
+    fn new(k: usize) -> Seeds {
+        Seeds {
+            ids: Vec::with_capacity(k),
+        }
+    }
+
+    /// True when the seeds prove `q` accepted.
+    fn accept<const D: usize, I: NeighbourIndex<D>>(
+        &self,
+        index: &I,
+        q: &[f32; D],
+        k: usize,
+    ) -> bool {
+        self.ids.len() == k
+            && surely_below_k(self.ids.iter().map(|&id| dist2(index.point(id), q)), k)
+    }
+
+    fn remember(&mut self, kb: &KBest) {
+        if kb.is_full() {
+            self.ids.clear();
+            self.ids.extend_from_slice(kb.ids());
+        }
+    }
+}
 
 fn replay<const D: usize, I: NeighbourIndex<D>>(
     records: &[Record],
@@ -165,6 +207,7 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
     ];
     let mut kbuf = vec![0.0f64; batch * k];
     let mut kb = KBest::new(k);
+    let mut scratch = I::Scratch::default();
 
     for start in (0..n).step_by(batch) {
         let chunk = &records[start..(start + batch).min(n)];
@@ -177,13 +220,20 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
             .zip(chunk.par_chunks(SUB_BLOCK))
             .for_each(|((slots, kbuf), recs)| {
                 let mut kb = KBest::new(k);
+                let mut scratch = I::Scratch::default();
+                let mut seeds = Seeds::new(k);
                 for ((slot, kd), rec) in slots.iter_mut().zip(kbuf.chunks_mut(k)).zip(recs) {
                     slot.validity = rec.validity(header);
                     if slot.validity != Validity::Valid {
                         continue;
                     }
                     slot.p = params.space.point::<D>(rec);
-                    slot.found = index_ref.search(&slot.p, None, goal, &mut kb);
+                    if goal == Goal::Decide && seeds.accept(index_ref, &slot.p, k) {
+                        slot.found = ACCEPTED;
+                        continue;
+                    }
+                    slot.found = index_ref.search(&slot.p, None, goal, &mut kb, &mut scratch);
+                    seeds.remember(&kb);
                     slot.klen = kb.as_slice().len();
                     kd[..slot.klen].copy_from_slice(kb.as_slice());
                 }
@@ -203,7 +253,7 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
                 slot.found
             } else {
                 kb.load(&kbuf[i * k..i * k + slot.klen]);
-                index.recheck(&slot.p, first_new, slot.found, goal, &mut kb)
+                index.recheck(&slot.p, first_new, slot.found, goal, &mut kb, &mut scratch)
             };
             if let (Some(sig), Some(v)) = (sigma.as_mut(), found.verdict.sigma()) {
                 sig[rec] = v;
@@ -226,8 +276,12 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
     let finals: Vec<Verdict> = (0..index.len() as u32)
         .into_par_iter()
         .map_init(
-            || KBest::new(k),
-            |kb, id| index.search(index.point(id), Some(id), goal, kb).verdict,
+            || (KBest::new(k), I::Scratch::default()),
+            |(kb, scratch), id| {
+                index
+                    .search(index.point(id), Some(id), goal, kb, scratch)
+                    .verdict
+            },
         )
         .collect();
     for (&rec, v) in stored_at.iter().zip(&finals) {

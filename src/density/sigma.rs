@@ -2,20 +2,21 @@
 //! (SPEC §3), and the bounds that let a search stop early without changing
 //! any decision.
 
-/// The k smallest distances seen so far, kept sorted ascending.
+/// The k smallest squared distances seen so far, kept sorted ascending,
+/// with the ids of their points.
 ///
-/// Candidates arrive as squared distances and are screened against the
-/// square of the current k-th distance (with a margin that can only let
-/// extra candidates through), so most never pay a square root.
+/// Squared distances order exactly as distances (sqrt is correctly rounded,
+/// hence monotone), so candidates never pay a square root: only the k that
+/// enter σ do, when it is evaluated.
 ///
-/// Invariant: `len ≤ k` and `d[..len]` is sorted ascending.
+/// Invariant: `len ≤ k` and `d2[..len]` is sorted ascending.
 #[derive(Clone, Debug)]
 pub struct KBest {
     k: usize,
     len: usize,
-    d: Vec<f64>,
-    /// Squared distances above this cannot enter.
-    screen2: f64,
+    d2: Vec<f64>,
+    /// The stored-point id of each distance (`u32::MAX` when unknown).
+    ids: Vec<u32>,
     /// Bumped on every change, so callers can skip re-judging.
     version: u64,
 }
@@ -26,8 +27,8 @@ impl KBest {
         KBest {
             k,
             len: 0,
-            d: vec![0.0; k],
-            screen2: f64::INFINITY,
+            d2: vec![0.0; k],
+            ids: vec![u32::MAX; k],
             version: 0,
         }
     }
@@ -38,19 +39,26 @@ impl KBest {
 
     pub fn clear(&mut self) {
         self.len = 0;
-        self.screen2 = f64::INFINITY;
     }
 
-    /// Replaces the contents with `sorted` distances (ascending, ≤ k values).
+    /// Replaces the contents with `sorted` squared distances (ascending, ≤ k
+    /// values) of unknown points.
     pub fn load(&mut self, sorted: &[f64]) {
         self.len = sorted.len();
-        self.d[..self.len].copy_from_slice(sorted);
-        self.update_screen();
+        self.d2[..self.len].copy_from_slice(sorted);
+        self.ids[..self.len].fill(u32::MAX);
+        self.version += 1;
     }
 
-    /// The distances, ascending.
+    /// The squared distances, ascending.
     pub fn as_slice(&self) -> &[f64] {
-        &self.d[..self.len]
+        &self.d2[..self.len]
+    }
+
+    /// The ids of the points behind [`KBest::as_slice`] (`u32::MAX` for
+    /// distances given to [`KBest::load`]).
+    pub fn ids(&self) -> &[u32] {
+        &self.ids[..self.len]
     }
 
     /// Changes whenever the contents change.
@@ -62,75 +70,90 @@ impl KBest {
         self.len == self.k
     }
 
-    fn update_screen(&mut self) {
-        self.screen2 = if self.is_full() {
-            // sqrt is correctly rounded, so a square above w² (1 + 2^-40)
-            // has a root ≥ w and could not enter anyway.
-            let w = self.d[self.k - 1];
-            w * w * (1.0 + f64::EPSILON * 4096.0)
-        } else {
-            f64::INFINITY
-        };
-    }
-
     /// Offers one squared distance (from [`crate::joint::dist2`]).
     #[inline]
-    pub fn push(&mut self, dist2: f64) {
-        if dist2 > self.screen2 {
-            return;
-        }
-        let dist = dist2.sqrt();
+    pub fn push(&mut self, dist2: f64, id: u32) {
         let mut i = self.len;
         if i == self.k {
-            if dist >= self.d[i - 1] {
+            if dist2 >= self.d2[i - 1] {
                 return;
             }
             i -= 1;
         } else {
             self.len += 1;
         }
-        while i > 0 && self.d[i - 1] > dist {
-            self.d[i] = self.d[i - 1];
+        while i > 0 && self.d2[i - 1] > dist2 {
+            self.d2[i] = self.d2[i - 1];
+            self.ids[i] = self.ids[i - 1];
             i -= 1;
         }
-        self.d[i] = dist;
+        self.d2[i] = dist2;
+        self.ids[i] = id;
         self.version += 1;
-        if self.len == self.k {
-            self.update_screen();
+    }
+
+    /// The k-th smallest squared distance so far, +∞ while fewer than k are
+    /// known.
+    #[inline]
+    pub fn worst2(&self) -> f64 {
+        if self.is_full() {
+            self.d2[self.k - 1]
+        } else {
+            f64::INFINITY
         }
     }
 
     /// The k-th smallest distance so far, +∞ while fewer than k are known.
     #[inline]
     pub fn worst(&self) -> f64 {
-        if self.is_full() {
-            self.d[self.k - 1]
-        } else {
-            f64::INFINITY
-        }
+        self.worst2().sqrt()
+    }
+
+    /// The canonical σ of the contents (+∞ while fewer than k).
+    #[inline]
+    pub fn sigma(&self) -> f64 {
+        sigma(self.as_slice(), self.k)
     }
 }
 
-/// The canonical σ (SPEC §3): the k smallest distances, sorted ascending,
-/// added one at a time from the smallest in f64 and divided by k; +∞ when
-/// fewer than k are given. Every σ in this crate comes from this function,
-/// so the search path that found the neighbours cannot change the bits.
+/// The canonical σ (SPEC §3) from the k smallest squared distances, sorted
+/// ascending: their square roots added one at a time from the smallest in
+/// f64 and divided by k; +∞ when fewer than k are given. Every σ in this
+/// crate comes from this function, so the search path that found the
+/// neighbours cannot change the bits.
 ///
 /// ```
 /// use pathdensity::density::sigma::sigma;
-/// assert_eq!(sigma(&[0.5, 1.0, 1.5], 3), 1.0);
-/// assert_eq!(sigma(&[0.5], 3), f64::INFINITY);
+/// assert_eq!(sigma(&[0.25, 1.0, 2.25], 3), 1.0);
+/// assert_eq!(sigma(&[0.25], 3), f64::INFINITY);
 /// ```
 #[inline]
-pub fn sigma(sorted: &[f64], k: usize) -> f64 {
-    if sorted.len() < k {
+pub fn sigma(sorted2: &[f64], k: usize) -> f64 {
+    if sorted2.len() < k {
         return f64::INFINITY;
     }
     let mut s = 0.0f64;
-    for &d in &sorted[..k] {
-        s += d;
+    for &d2 in &sorted2[..k] {
+        s += d2.sqrt();
     }
     s / k as f64
+}
+
+/// True when the square roots of `d2` (k values, any order) provably add
+/// up to less than k in the canonical order, so that their canonical σ is
+/// below 1. Any two orders of summing k non-negative values differ by at
+/// most 2γ₍k−1₎ ≈ 2k·2⁻⁵³ of the sum; the margin k·2⁻⁴⁰ covers that and
+/// the final division for any k ≤ 2³⁰.
+#[inline]
+pub fn surely_below_k(d2: impl Iterator<Item = f64>, k: usize) -> bool {
+    debug_assert!(k <= 1 << 30);
+    // Four partial sums: independent additions pipeline.
+    let mut s = [0.0f64; 4];
+    for (i, x) in d2.enumerate() {
+        s[i & 3] += x.sqrt();
+    }
+    let kf = k as f64;
+    (s[0] + s[1]) + (s[2] + s[3]) < kf * (1.0 - kf * f64::EPSILON * 4096.0)
 }
 
 /// A lower bound on σ when every point not yet seen lies at distance ≥
@@ -138,10 +161,10 @@ pub fn sigma(sorted: &[f64], k: usize) -> f64 {
 /// computed with the same arithmetic as [`sigma`], and f64 addition is
 /// monotone, so `lower_bound(..) ≥ 1` proves the exact σ ≥ 1.
 #[inline]
-pub fn lower_bound(sorted: &[f64], k: usize, bound: f64) -> f64 {
+pub fn lower_bound(sorted2: &[f64], k: usize, bound: f64) -> f64 {
     let mut s = 0.0f64;
     for i in 0..k {
-        let d = sorted.get(i).copied().unwrap_or(f64::INFINITY);
+        let d = sorted2.get(i).map_or(f64::INFINITY, |d2| d2.sqrt());
         s += d.min(bound);
     }
     s / k as f64
@@ -193,10 +216,10 @@ impl Verdict {
 pub fn judge(kb: &KBest, bound: f64, goal: Goal) -> Option<Verdict> {
     let k = kb.k();
     if kb.worst() <= bound || bound == f64::INFINITY {
-        return Some(Verdict::Sigma(sigma(kb.as_slice(), k)));
+        return Some(Verdict::Sigma(kb.sigma()));
     }
     if goal == Goal::Decide {
-        if kb.is_full() && sigma(kb.as_slice(), k) < 1.0 {
+        if kb.is_full() && kb.sigma() < 1.0 {
             return Some(Verdict::Accept);
         }
         if lower_bound(kb.as_slice(), k, bound) >= 1.0 {
@@ -214,16 +237,17 @@ mod tests {
     fn kbest_keeps_the_k_smallest_sorted() {
         let mut kb = KBest::new(3);
         for d in [25.0, 1.0, 16.0, 0.0, 9.0, 0.0] {
-            kb.push(d);
+            kb.push(d, 0);
         }
         assert_eq!(kb.as_slice(), &[0.0, 0.0, 1.0]);
+        assert_eq!(kb.ids(), &[0, 0, 0]);
     }
 
     #[test]
     fn lower_bound_never_exceeds_sigma_of_a_completion() {
-        let found = [0.2, 0.4];
+        let found = [0.04, 0.16];
         // Completing with points at the bound gives exactly the lower bound.
-        let lb = lower_bound(&found, 4, 0.7);
-        assert_eq!(lb, sigma(&[0.2, 0.4, 0.7, 0.7], 4));
+        let lb = lower_bound(&found, 4, 0.5);
+        assert_eq!(lb, sigma(&[0.04, 0.16, 0.25, 0.25], 4));
     }
 }

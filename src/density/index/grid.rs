@@ -12,8 +12,9 @@
 //! along one axis; rounding is monotone, so its computed distance is at least
 //! `sqrt(g * g)` computed the same way. That is the search's `bound`.
 
+use super::tile::Tile;
 use super::{Found, NeighbourIndex, offer_suffix};
-use crate::density::sigma::{Goal, KBest, Verdict, judge, sigma};
+use crate::density::sigma::{Goal, KBest, judge};
 use crate::joint::dist2;
 
 /// Upper limit on the number of cells; the cell side doubles until it fits.
@@ -33,6 +34,9 @@ pub struct Grid<const D: usize> {
     dims: [usize; 3],
     cells: Vec<Vec<Entry<D>>>,
     arena: Vec<[f32; D]>,
+    /// Radius in cells of the block a [`Tile`] gathers: 2 for stills; 1
+    /// for animations, whose blocks are cubes.
+    tile_radius: usize,
 }
 
 // Axis loops index several parallel arrays (side, dims, cell coordinates).
@@ -67,6 +71,7 @@ impl<const D: usize> Grid<D> {
             dims,
             cells: (0..n).map(|_| Vec::new()).collect(),
             arena: Vec::new(),
+            tile_radius: if axes == 3 { 1 } else { 2 },
         }
     }
 
@@ -168,10 +173,11 @@ impl<const D: usize> Grid<D> {
         }
     }
 
-    /// Lower bound on the distance from `q` to any point of cell `c`,
-    /// computed so that rounding keeps it a lower bound (see the module doc).
+    /// Lower bound on the squared distance from `q` to any point of cell
+    /// `c`: the computed squared distance of any point there is at least
+    /// this (see the module doc; the colour terms only add).
     #[inline]
-    fn cell_bound(&self, q: &[f32; D], c: [usize; 3]) -> f64 {
+    fn cell_bound2(&self, q: &[f32; D], c: [usize; 3]) -> f64 {
         let mut s = 0.0f64;
         for a in 0..self.axes {
             let v = Self::axis_value(q, a);
@@ -188,7 +194,7 @@ impl<const D: usize> Grid<D> {
             };
             s += g * g;
         }
-        s.sqrt()
+        s
     }
 
     /// Offers the points of one cell.
@@ -196,16 +202,16 @@ impl<const D: usize> Grid<D> {
     fn scan(&self, cell: usize, q: &[f32; D], exclude: Option<u32>, kb: &mut KBest) {
         for e in &self.cells[cell] {
             if Some(e.id) != exclude {
-                kb.push(dist2(&e.p, q));
+                kb.push(dist2(&e.p, q), e.id);
             }
         }
     }
 
     fn brute_force(&self, q: &[f32; D], exclude: Option<u32>, goal: Goal, kb: &mut KBest) -> Found {
         kb.clear();
-        for (id, p) in self.arena.iter().enumerate() {
-            if Some(id as u32) != exclude {
-                kb.push(dist2(p, q));
+        for (p, id) in self.arena.iter().zip(0u32..) {
+            if Some(id) != exclude {
+                kb.push(dist2(p, q), id);
             }
         }
         let verdict = judge(kb, f64::INFINITY, goal).expect("a complete search always decides");
@@ -218,6 +224,8 @@ impl<const D: usize> Grid<D> {
 }
 
 impl<const D: usize> NeighbourIndex<D> for Grid<D> {
+    type Scratch = Tile<D>;
+
     fn insert(&mut self, p: [f32; D]) -> u32 {
         let id = u32::try_from(self.arena.len()).expect("more than 2^32 stored samples");
         let c = self.flat(self.cell_of(&p));
@@ -234,76 +242,33 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
         &self.arena[id as usize]
     }
 
-    fn search(&self, q: &[f32; D], exclude: Option<u32>, goal: Goal, kb: &mut KBest) -> Found {
-        kb.clear();
+    fn search(
+        &self,
+        q: &[f32; D],
+        exclude: Option<u32>,
+        goal: Goal,
+        kb: &mut KBest,
+        tile: &mut Tile<D>,
+    ) -> Found {
         let centre = self.cell_of(q);
-        // Early acceptance, checked after each cell that changed the k
-        // nearest (exact: see `judge`).
-        let mut judged = u64::MAX;
-        let mut accepts = |kb: &KBest| {
-            if goal != Goal::Decide || !kb.is_full() || kb.version() == judged {
-                return false;
+        // The block of radius `tile_radius` settles almost every search.
+        let mut r = self.tile_radius;
+        let key = (self.flat(centre), self.arena.len());
+        if !tile.holds(key) {
+            let mut flats = Vec::with_capacity(125);
+            for rr in 0..=r {
+                self.for_ring(centre, rr, |_, flat| flats.push(flat));
             }
-            judged = kb.version();
-            sigma(kb.as_slice(), kb.k()) < 1.0
-        };
-        let accept = |r: usize| Found {
-            verdict: Verdict::Accept,
-            bound: 0.0,
-            reach: r as u32,
-        };
-        let own = self.flat(centre);
-        self.scan(own, q, exclude, kb);
-        if !self.cells[own].is_empty() && accepts(kb) {
-            return accept(0);
+            let points = flats
+                .into_iter()
+                .flat_map(|flat| self.cells[flat].iter().map(|e| (&e.p, e.id)));
+            tile.fill(key, points);
         }
-        let mut r = 0usize;
+        tile.nearest(q, exclude, kb);
         // Least lower bound of the cells skipped because they could not
         // hold a point nearer than the current k-th.
         let mut skipped = f64::INFINITY;
         loop {
-            if r > 0 {
-                if self.ring_cells(r) > self.arena.len() + 64 {
-                    // Wide, sparse searches: scanning every point is cheaper.
-                    return self.brute_force(q, exclude, goal, kb);
-                }
-                // Ring 1 is visited nearest cell first (most searches end
-                // there); wider rings in grid order. Cells that cannot hold
-                // a point nearer than the current k-th are skipped.
-                let mut near = [(0.0f64, 0usize); 26];
-                let mut n = 0;
-                let mut stop = false;
-                self.for_ring(centre, r, |c, flat| {
-                    if stop || self.cells[flat].is_empty() {
-                        return;
-                    }
-                    let lb = self.cell_bound(q, c);
-                    if r == 1 {
-                        near[n] = (lb, flat);
-                        n += 1;
-                    } else if lb >= kb.worst() {
-                        skipped = skipped.min(lb);
-                    } else {
-                        self.scan(flat, q, exclude, kb);
-                        stop = accepts(kb);
-                    }
-                });
-                if stop {
-                    return accept(r);
-                }
-                let near = &mut near[..n];
-                near.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
-                for &(lb, flat) in near.iter() {
-                    if lb >= kb.worst() {
-                        skipped = skipped.min(lb);
-                        continue;
-                    }
-                    self.scan(flat, q, exclude, kb);
-                    if accepts(kb) {
-                        return accept(r);
-                    }
-                }
-            }
             let bound = if self.covers(centre, r) {
                 skipped
             } else {
@@ -317,6 +282,21 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
                 };
             }
             r += 1;
+            if self.ring_cells(r) > self.arena.len() + 64 {
+                // Wide, sparse searches: scanning every point is cheaper.
+                return self.brute_force(q, exclude, goal, kb);
+            }
+            self.for_ring(centre, r, |c, flat| {
+                if self.cells[flat].is_empty() {
+                    return;
+                }
+                let lb2 = self.cell_bound2(q, c);
+                if lb2 >= kb.worst2() {
+                    skipped = skipped.min(lb2.sqrt());
+                } else {
+                    self.scan(flat, q, exclude, kb);
+                }
+            });
         }
     }
 
@@ -327,8 +307,10 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
         prev: Found,
         goal: Goal,
         kb: &mut KBest,
+        tile: &mut Tile<D>,
     ) -> Found {
         let new = self.arena.len() - first_new as usize;
+        let before = kb.version();
         if new > 0 {
             if prev.bound == f64::INFINITY || new <= 32 {
                 offer_suffix(&self.arena, first_new, q, kb);
@@ -336,18 +318,27 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
                 // The new points are the tails of the cells' lists.
                 let centre = self.cell_of(q);
                 for r in 0..=prev.reach as usize {
-                    self.for_ring(centre, r, |_, flat| {
+                    self.for_ring(centre, r, |c, flat| {
                         let cell = &self.cells[flat];
+                        if cell.last().is_none_or(|e| e.id < first_new)
+                            || self.cell_bound2(q, c) >= kb.worst2()
+                        {
+                            return;
+                        }
                         for e in cell.iter().rev().take_while(|e| e.id >= first_new) {
-                            kb.push(dist2(&e.p, q));
+                            kb.push(dist2(&e.p, q), e.id);
                         }
                     });
                 }
             }
         }
+        if kb.version() == before {
+            // Nothing nearer arrived: the earlier verdict stands.
+            return prev;
+        }
         match judge(kb, prev.bound, goal) {
             Some(verdict) => Found { verdict, ..prev },
-            None => self.search(q, None, goal, kb),
+            None => self.search(q, None, goal, kb, tile),
         }
     }
 }

@@ -40,6 +40,8 @@ impl<const D: usize> KdTree<D> {
 }
 
 impl<const D: usize> NeighbourIndex<D> for KdTree<D> {
+    type Scratch = ();
+
     fn insert(&mut self, p: [f32; D]) -> u32 {
         let id = u32::try_from(self.arena.len()).expect("more than 2^32 stored samples");
         if self.tree.add(&p, id).is_err() {
@@ -57,7 +59,14 @@ impl<const D: usize> NeighbourIndex<D> for KdTree<D> {
         &self.arena[id as usize]
     }
 
-    fn search(&self, q: &[f32; D], exclude: Option<u32>, goal: Goal, kb: &mut KBest) -> Found {
+    fn search(
+        &self,
+        q: &[f32; D],
+        exclude: Option<u32>,
+        goal: Goal,
+        kb: &mut KBest,
+        _: &mut (),
+    ) -> Found {
         kb.clear();
         let in_tree = self.arena.len() - self.overflow.len();
         if in_tree > 0 {
@@ -70,13 +79,13 @@ impl<const D: usize> NeighbourIndex<D> for KdTree<D> {
                 .execute();
             for h in hits {
                 if Some(h.item) != exclude {
-                    kb.push(dist2(&self.arena[h.item as usize], q));
+                    kb.push(dist2(&self.arena[h.item as usize], q), h.item);
                 }
             }
         }
         for &id in &self.overflow {
             if Some(id) != exclude {
-                kb.push(dist2(&self.arena[id as usize], q));
+                kb.push(dist2(&self.arena[id as usize], q), id);
             }
         }
         let verdict = judge(kb, f64::INFINITY, goal).expect("a complete search always decides");
@@ -94,6 +103,7 @@ impl<const D: usize> NeighbourIndex<D> for KdTree<D> {
         prev: Found,
         goal: Goal,
         kb: &mut KBest,
+        scratch: &mut (),
     ) -> Found {
         // The previous search was complete, so only the new points can matter.
         let new = self.arena.len() - first_new as usize;
@@ -102,7 +112,7 @@ impl<const D: usize> NeighbourIndex<D> for KdTree<D> {
             let verdict = judge(kb, prev.bound, goal).expect("a complete search always decides");
             Found { verdict, ..prev }
         } else {
-            self.search(q, None, goal, kb)
+            self.search(q, None, goal, kb, scratch)
         }
     }
 }

@@ -5,6 +5,7 @@
 
 pub mod grid;
 pub mod kdtree;
+pub mod tile;
 
 use super::sigma::{Goal, KBest, Verdict};
 
@@ -22,6 +23,10 @@ pub struct Found {
 /// An incremental, exact k-nearest index over joint-space points of
 /// dimension `D`. Points get ids 0, 1, 2, … in insertion order.
 pub trait NeighbourIndex<const D: usize>: Sync {
+    /// Per-worker working memory of the searches (caches, buffers). It
+    /// never changes a result, only how fast it is found.
+    type Scratch: Default + Send;
+
     /// Adds a point and returns its id. Never fails: identical points are
     /// distinct neighbours at distance 0.
     fn insert(&mut self, p: [f32; D]) -> u32;
@@ -36,7 +41,14 @@ pub trait NeighbourIndex<const D: usize>: Sync {
 
     /// Searches the k = `kb.k()` nearest stored points to `q`, skipping the
     /// point `exclude`. On return `kb` holds the nearest distances found.
-    fn search(&self, q: &[f32; D], exclude: Option<u32>, goal: Goal, kb: &mut KBest) -> Found;
+    fn search(
+        &self,
+        q: &[f32; D],
+        exclude: Option<u32>,
+        goal: Goal,
+        kb: &mut KBest,
+        scratch: &mut Self::Scratch,
+    ) -> Found;
 
     /// Completes an earlier search `prev` (whose distances are in `kb`) with
     /// the points inserted since, those with id ≥ `first_new`.
@@ -47,6 +59,7 @@ pub trait NeighbourIndex<const D: usize>: Sync {
         prev: Found,
         goal: Goal,
         kb: &mut KBest,
+        scratch: &mut Self::Scratch,
     ) -> Found;
 }
 
@@ -67,7 +80,7 @@ pub(crate) fn offer_suffix<const D: usize>(
     q: &[f32; D],
     kb: &mut KBest,
 ) {
-    for p in &arena[first_new as usize..] {
-        kb.push(crate::joint::dist2(p, q));
+    for (p, id) in arena[first_new as usize..].iter().zip(first_new..) {
+        kb.push(crate::joint::dist2(p, q), id);
     }
 }
