@@ -55,7 +55,7 @@ impl Default for FilterParams {
             space: JointSpace::default(),
             index: IndexKind::Grid,
             exact_sigma: false,
-            batch: 16384,
+            batch: 4096,
         }
     }
 }
@@ -98,16 +98,16 @@ pub fn run(
     ];
     match (header.animated(), params.index) {
         (false, IndexKind::Grid) => {
-            replay::<5, _>(records, header, params, Grid::new(extent), progress)
+            replay::<5, _>(records, header, params, || Grid::new(extent), progress)
         }
         (true, IndexKind::Grid) => {
-            replay::<6, _>(records, header, params, Grid::new(extent), progress)
+            replay::<6, _>(records, header, params, || Grid::new(extent), progress)
         }
         (false, IndexKind::Kdtree) => {
-            replay::<5, _>(records, header, params, KdTree::default(), progress)
+            replay::<5, _>(records, header, params, KdTree::default, progress)
         }
         (true, IndexKind::Kdtree) => {
-            replay::<6, _>(records, header, params, KdTree::default(), progress)
+            replay::<6, _>(records, header, params, KdTree::default, progress)
         }
     }
 }
@@ -119,13 +119,18 @@ const ACCEPTED: Found = Found {
     reach: 0,
 };
 
-/// One record of a batch after the parallel search.
+/// One record of a batch, classified and mapped to the joint space.
 #[derive(Clone, Copy)]
 struct Slot<const D: usize> {
     validity: Validity,
     p: [f32; D],
+}
+
+/// The parallel search of one valid record.
+#[derive(Clone, Copy)]
+struct Hit {
     found: Found,
-    /// How many distances of `kbuf` belong to this slot.
+    /// How many distances of `kbuf` belong to this hit.
     klen: usize,
 }
 
@@ -166,11 +171,161 @@ impl Seeds {
     }
 }
 
+/// One batch's records after the parallel search.
+struct Batch<const D: usize> {
+    /// In file order.
+    slots: Vec<Slot<D>>,
+    /// (locality key << 32 | position in the batch), sorted: the order the
+    /// records are searched in, so that neighbours share a worker's caches
+    /// whatever the order of the dump.
+    order: Vec<u64>,
+    /// Search results in `order`'s order, and the k nearest squared
+    /// distances each found (`k` per hit).
+    hits: Vec<Hit>,
+    kbuf: Vec<f64>,
+    /// Position in `hits` of each record of the batch.
+    pos: Vec<u32>,
+    /// |T| when the batch was searched: points with larger ids are new to it.
+    base: u32,
+}
+
+impl<const D: usize> Batch<D> {
+    fn new(len: usize, k: usize) -> Batch<D> {
+        let slot = Slot {
+            validity: Validity::NonFinite,
+            p: [0.0; D],
+        };
+        let hit = Hit {
+            found: ACCEPTED,
+            klen: 0,
+        };
+        Batch {
+            slots: vec![slot; len],
+            order: Vec::with_capacity(len),
+            hits: vec![hit; len],
+            kbuf: vec![0.0; len * k],
+            pos: vec![0; len],
+            base: 0,
+        }
+    }
+
+    /// Parallel: classifies `recs`, maps them to the joint space and searches
+    /// `index` as it stands, nearby records together.
+    fn search<I: NeighbourIndex<D>>(
+        &mut self,
+        recs: &[Record],
+        index: &I,
+        header: &Header,
+        params: &FilterParams,
+        goal: Goal,
+    ) {
+        let k = params.k;
+        let m = recs.len();
+        self.base = index.len() as u32;
+        self.slots[..m]
+            .par_chunks_mut(SUB_BLOCK)
+            .zip(recs.par_chunks(SUB_BLOCK))
+            .for_each(|(slots, recs)| {
+                for (slot, rec) in slots.iter_mut().zip(recs) {
+                    slot.validity = rec.validity(header);
+                    if slot.validity == Validity::Valid {
+                        slot.p = params.space.point::<D>(rec);
+                    }
+                }
+            });
+        self.order.clear();
+        self.order.extend(
+            (0..m as u64)
+                .filter(|&i| self.slots[i as usize].validity == Validity::Valid)
+                .map(|i| (index.locality(&self.slots[i as usize].p) as u64) << 32 | i),
+        );
+        self.order.sort_unstable();
+        for (j, &key) in self.order.iter().enumerate() {
+            self.pos[(key & u32::MAX as u64) as usize] = j as u32;
+        }
+        let (slots, valid) = (&self.slots, self.order.len());
+        self.hits[..valid]
+            .par_chunks_mut(SUB_BLOCK)
+            .zip(self.kbuf[..valid * k].par_chunks_mut(SUB_BLOCK * k))
+            .zip(self.order.par_chunks(SUB_BLOCK))
+            .for_each(|((hits, kbuf), order)| {
+                let mut kb = KBest::new(k);
+                let mut scratch = I::Scratch::default();
+                let mut seeds = Seeds::new(k);
+                for ((hit, kd), &key) in hits.iter_mut().zip(kbuf.chunks_mut(k)).zip(order) {
+                    let p = &slots[(key & u32::MAX as u64) as usize].p;
+                    if goal == Goal::Decide && seeds.accept(index, p, k) {
+                        hit.found = ACCEPTED;
+                        continue;
+                    }
+                    hit.found = index.search(p, None, goal, &mut kb, &mut scratch);
+                    seeds.remember(&kb);
+                    hit.klen = kb.as_slice().len();
+                    kd[..hit.klen].copy_from_slice(kb.as_slice());
+                }
+            });
+    }
+}
+
+/// The streaming pass's results, filled in file order.
+struct Streaming<'a> {
+    decisions: &'a mut [u8],
+    sigma: Option<&'a mut [f64]>,
+    counts: &'a mut FilterCounts,
+    /// Record index of every stored point, by id.
+    stored_at: &'a mut Vec<u64>,
+}
+
+/// Sequential, in file order: completes each search of `batch` (records from
+/// `start`) with the points stored since it ran, then decides and stores.
+#[allow(clippy::too_many_arguments)]
+fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
+    batch: &Batch<D>,
+    start: usize,
+    m: usize,
+    index: &mut I,
+    goal: Goal,
+    kb: &mut KBest,
+    scratch: &mut I::Scratch,
+    out: &mut Streaming,
+) {
+    let k = kb.k();
+    for (i, slot) in batch.slots[..m].iter().enumerate() {
+        let rec = start + i;
+        if slot.validity != Validity::Valid {
+            out.counts.invalid.add(slot.validity);
+            continue;
+        }
+        out.counts.valid += 1;
+        let j = batch.pos[i] as usize;
+        let hit = &batch.hits[j];
+        let found = if index.len() == batch.base as usize
+            || (goal == Goal::Decide && hit.found.verdict.accepted())
+        {
+            hit.found
+        } else {
+            kb.load(&batch.kbuf[j * k..j * k + hit.klen]);
+            index.recheck(&slot.p, batch.base, hit.found, goal, kb, scratch)
+        };
+        if let (Some(sig), Some(v)) = (out.sigma.as_mut(), found.verdict.sigma()) {
+            sig[rec] = v;
+        }
+        if found.verdict.accepted() {
+            out.decisions[rec] = Decision::AcceptedStreaming as u8;
+            out.counts.accepted_streaming += 1;
+        } else {
+            index.insert(slot.p);
+            out.stored_at.push(rec as u64);
+            out.decisions[rec] = Decision::Rejected as u8;
+        }
+    }
+}
+
 fn replay<const D: usize, I: NeighbourIndex<D>>(
     records: &[Record],
     header: &Header,
     params: &FilterParams,
-    mut index: I,
+    make_index: impl Fn() -> I,
     progress: &ProgressBar,
 ) -> FilterResult {
     let k = params.k;
@@ -186,89 +341,65 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
         records: n as u64,
         ..Default::default()
     };
-    // Record index of every stored point, by id.
     let mut stored_at: Vec<u64> = Vec::new();
 
     let t0 = Instant::now();
     let batch = params.batch.max(SUB_BLOCK);
-    let placeholder = Found {
-        verdict: Verdict::Reject,
-        bound: 0.0,
-        reach: 0,
-    };
-    let mut slots = vec![
-        Slot {
-            validity: Validity::NonFinite,
-            p: [0.0; D],
-            found: placeholder,
-            klen: 0,
-        };
-        batch
-    ];
-    let mut kbuf = vec![0.0f64; batch * k];
+    // Two copies of T: `index` is current; `lagging` trails it by one batch.
+    // While one worker decides batch b in order (inserting into `index`),
+    // the others search batch b + 1 against `lagging`; the rechecks then
+    // offer everything stored since, so the lag changes no result.
+    let mut index = make_index();
+    let mut lagging = make_index();
+    let mut batches = [Batch::<D>::new(batch, k), Batch::<D>::new(batch, k)];
     let mut kb = KBest::new(k);
     let mut scratch = I::Scratch::default();
-
-    for start in (0..n).step_by(batch) {
-        let chunk = &records[start..(start + batch).min(n)];
-        let m = chunk.len();
-        // Parallel: classify, map to the joint space, search T as it stands.
-        let index_ref = &index;
-        slots[..m]
-            .par_chunks_mut(SUB_BLOCK)
-            .zip(kbuf[..m * k].par_chunks_mut(SUB_BLOCK * k))
-            .zip(chunk.par_chunks(SUB_BLOCK))
-            .for_each(|((slots, kbuf), recs)| {
-                let mut kb = KBest::new(k);
-                let mut scratch = I::Scratch::default();
-                let mut seeds = Seeds::new(k);
-                for ((slot, kd), rec) in slots.iter_mut().zip(kbuf.chunks_mut(k)).zip(recs) {
-                    slot.validity = rec.validity(header);
-                    if slot.validity != Validity::Valid {
-                        continue;
-                    }
-                    slot.p = params.space.point::<D>(rec);
-                    if goal == Goal::Decide && seeds.accept(index_ref, &slot.p, k) {
-                        slot.found = ACCEPTED;
-                        continue;
-                    }
-                    slot.found = index_ref.search(&slot.p, None, goal, &mut kb, &mut scratch);
-                    seeds.remember(&kb);
-                    slot.klen = kb.as_slice().len();
-                    kd[..slot.klen].copy_from_slice(kb.as_slice());
+    let range = |start: usize| start..(start + batch).min(n);
+    if n > 0 {
+        batches[0].search(&records[range(0)], &lagging, header, params, goal);
+    }
+    for (b, start) in (0..n).step_by(batch).enumerate() {
+        let m = range(start).len();
+        let (cur, next) = if b % 2 == 0 {
+            let [a, b] = &mut batches;
+            (a, b)
+        } else {
+            let [a, b] = &mut batches;
+            (b, a)
+        };
+        let mut out = Streaming {
+            decisions: &mut decisions,
+            sigma: sigma.as_deref_mut(),
+            counts: &mut counts,
+            stored_at: &mut stored_at,
+        };
+        let lagging_ref = &lagging;
+        rayon::join(
+            || {
+                decide_in_order(
+                    cur,
+                    start,
+                    m,
+                    &mut index,
+                    goal,
+                    &mut kb,
+                    &mut scratch,
+                    &mut out,
+                )
+            },
+            || {
+                if start + batch < n {
+                    let recs = &records[range(start + batch)];
+                    next.search(recs, lagging_ref, header, params, goal);
                 }
-            });
-        // Sequential, in file order: complete with this batch's insertions.
-        let first_new = index.len() as u32;
-        for (i, slot) in slots[..m].iter().enumerate() {
-            let rec = start + i;
-            if slot.validity != Validity::Valid {
-                counts.invalid.add(slot.validity);
-                continue;
-            }
-            counts.valid += 1;
-            let found = if index.len() == first_new as usize
-                || (goal == Goal::Decide && slot.found.verdict.accepted())
-            {
-                slot.found
-            } else {
-                kb.load(&kbuf[i * k..i * k + slot.klen]);
-                index.recheck(&slot.p, first_new, slot.found, goal, &mut kb, &mut scratch)
-            };
-            if let (Some(sig), Some(v)) = (sigma.as_mut(), found.verdict.sigma()) {
-                sig[rec] = v;
-            }
-            if found.verdict.accepted() {
-                decisions[rec] = Decision::AcceptedStreaming as u8;
-                counts.accepted_streaming += 1;
-            } else {
-                index.insert(slot.p);
-                stored_at.push(rec as u64);
-                decisions[rec] = Decision::Rejected as u8;
-            }
+            },
+        );
+        for id in lagging.len()..index.len() {
+            lagging.insert(*index.point(id as u32));
         }
         progress.inc(m as u64);
     }
+    drop(lagging);
     let streaming_seconds = t0.elapsed().as_secs_f64();
 
     // Final pass: every stored point against T without itself.

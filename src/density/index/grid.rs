@@ -33,6 +33,9 @@ pub struct Grid<const D: usize> {
     inv: [f64; 3],
     dims: [usize; 3],
     cells: Vec<Vec<Entry<D>>>,
+    /// The id of each cell's last point: rechecks find the cells that
+    /// changed without touching the others' lists.
+    newest: Vec<Option<u32>>,
     arena: Vec<[f32; D]>,
     /// Radius in cells of the block a [`Tile`] gathers: 2 for stills; 1
     /// for animations, whose blocks are cubes.
@@ -70,6 +73,7 @@ impl<const D: usize> Grid<D> {
             inv,
             dims,
             cells: (0..n).map(|_| Vec::new()).collect(),
+            newest: vec![None; n],
             arena: Vec::new(),
             tile_radius: if axes == 3 { 1 } else { 2 },
         }
@@ -230,6 +234,7 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
         let id = u32::try_from(self.arena.len()).expect("more than 2^32 stored samples");
         let c = self.flat(self.cell_of(&p));
         self.cells[c].push(Entry { p, id });
+        self.newest[c] = Some(id);
         self.arena.push(p);
         id
     }
@@ -240,6 +245,11 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
 
     fn point(&self, id: u32) -> &[f32; D] {
         &self.arena[id as usize]
+    }
+
+    fn locality(&self, q: &[f32; D]) -> u32 {
+        // At most MAX_CELLS cells, so the index fits.
+        self.flat(self.cell_of(q)) as u32
     }
 
     fn search(
@@ -312,19 +322,22 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
         let new = self.arena.len() - first_new as usize;
         let before = kb.version();
         if new > 0 {
-            if prev.bound == f64::INFINITY || new <= 32 {
+            if prev.bound == f64::INFINITY || new <= 8 {
                 offer_suffix(&self.arena, first_new, q, kb);
             } else {
                 // The new points are the tails of the cells' lists.
                 let centre = self.cell_of(q);
                 for r in 0..=prev.reach as usize {
+                    if r > 0 && self.bound(q, centre, r - 1) >= kb.worst() {
+                        break;
+                    }
                     self.for_ring(centre, r, |c, flat| {
-                        let cell = &self.cells[flat];
-                        if cell.last().is_none_or(|e| e.id < first_new)
+                        if self.newest[flat].is_none_or(|id| id < first_new)
                             || self.cell_bound2(q, c) >= kb.worst2()
                         {
                             return;
                         }
+                        let cell = &self.cells[flat];
                         for e in cell.iter().rev().take_while(|e| e.id >= first_new) {
                             kb.push(dist2(&e.p, q), e.id);
                         }

@@ -22,7 +22,7 @@ pub struct Found {
 
 /// An incremental, exact k-nearest index over joint-space points of
 /// dimension `D`. Points get ids 0, 1, 2, … in insertion order.
-pub trait NeighbourIndex<const D: usize>: Sync {
+pub trait NeighbourIndex<const D: usize>: Sync + Send {
     /// Per-worker working memory of the searches (caches, buffers). It
     /// never changes a result, only how fast it is found.
     type Scratch: Default + Send;
@@ -38,6 +38,13 @@ pub trait NeighbourIndex<const D: usize>: Sync {
     }
 
     fn point(&self, id: u32) -> &[f32; D];
+
+    /// A key shared by nearby queries; the filter searches a batch in key
+    /// order so that consecutive searches share a worker's caches. Only
+    /// speed depends on it.
+    fn locality(&self, _q: &[f32; D]) -> u32 {
+        0
+    }
 
     /// Searches the k = `kb.k()` nearest stored points to `q`, skipping the
     /// point `exclude`. On return `kb` holds the nearest distances found.
