@@ -2,10 +2,12 @@
 //!
 //! Parallelism that cannot change results: T only grows, and a larger T can
 //! only lower σ. A batch of consecutive samples is searched in parallel
-//! against T as it stood at the batch start; then, in file order, a sample
-//! found accepted stays accepted, and any other is completed with the points
-//! stored earlier in the same batch (see [`NeighbourIndex::recheck`]) before
-//! it is decided. The final pass searches a fixed T, so it is parallel as is.
+//! against an earlier state of T; then, in file order, a sample found
+//! accepted stays accepted, and any other is completed with the points
+//! stored since that state (see [`NeighbourIndex::recheck`]) before it is
+//! decided. The in-order pass over batch b overlaps the search of batch
+//! b + 1, which therefore reads a copy of T one batch behind. The final pass
+//! searches a fixed T, so it is parallel as is.
 
 use std::time::Instant;
 
