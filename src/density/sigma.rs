@@ -19,6 +19,8 @@ pub struct KBest {
     ids: Vec<u32>,
     /// Bumped on every change, so callers can skip re-judging.
     version: u64,
+    /// False after [`KBest::set_unordered`]: then only the set is known.
+    sorted: bool,
 }
 
 impl KBest {
@@ -30,6 +32,7 @@ impl KBest {
             d2: vec![0.0; k],
             ids: vec![u32::MAX; k],
             version: 0,
+            sorted: true,
         }
     }
 
@@ -39,6 +42,21 @@ impl KBest {
 
     pub fn clear(&mut self) {
         self.len = 0;
+        self.sorted = true;
+    }
+
+    /// Replaces the contents with the k nearest `(squared distance, id)` of
+    /// a search that has already decided, in no order: their ids stay
+    /// available, but nothing may be judged from them until the next
+    /// [`KBest::clear`] or [`KBest::load`].
+    pub fn set_unordered(&mut self, nearest: &[(f64, u32)]) {
+        self.len = nearest.len();
+        for (i, &(d2, id)) in nearest.iter().enumerate() {
+            self.d2[i] = d2;
+            self.ids[i] = id;
+        }
+        self.sorted = false;
+        self.version += 1;
     }
 
     /// Replaces the contents with `sorted` squared distances (ascending, ≤ k
@@ -47,10 +65,11 @@ impl KBest {
         self.len = sorted.len();
         self.d2[..self.len].copy_from_slice(sorted);
         self.ids[..self.len].fill(u32::MAX);
+        self.sorted = true;
         self.version += 1;
     }
 
-    /// The squared distances, ascending.
+    /// The squared distances, ascending (see [`KBest::set_unordered`]).
     pub fn as_slice(&self) -> &[f64] {
         &self.d2[..self.len]
     }
@@ -73,6 +92,7 @@ impl KBest {
     /// Offers one squared distance (from [`crate::joint::dist2`]).
     #[inline]
     pub fn push(&mut self, dist2: f64, id: u32) {
+        debug_assert!(self.sorted);
         let mut i = self.len;
         if i == self.k {
             if dist2 >= self.d2[i - 1] {
@@ -96,6 +116,7 @@ impl KBest {
     /// known.
     #[inline]
     pub fn worst2(&self) -> f64 {
+        debug_assert!(self.sorted);
         if self.is_full() {
             self.d2[self.k - 1]
         } else {
@@ -112,6 +133,7 @@ impl KBest {
     /// The canonical σ of the contents (+∞ while fewer than k).
     #[inline]
     pub fn sigma(&self) -> f64 {
+        debug_assert!(self.sorted);
         sigma(self.as_slice(), self.k)
     }
 }

@@ -14,7 +14,7 @@
 
 use super::tile::Tile;
 use super::{Found, NeighbourIndex, offer_suffix};
-use crate::density::sigma::{Goal, KBest, judge};
+use crate::density::sigma::{Goal, KBest, Verdict, judge};
 use crate::joint::dist2;
 
 /// Upper limit on the number of cells; the cell side doubles until it fits.
@@ -274,7 +274,13 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
                 .flat_map(|flat| self.cells[flat].iter().map(|e| (&e.p, e.id)));
             tile.fill(key, points);
         }
-        tile.nearest(q, exclude, kb);
+        if tile.nearest(q, exclude, kb, goal == Goal::Decide) {
+            return Found {
+                verdict: Verdict::Accept,
+                bound: 0.0,
+                reach: r as u32,
+            };
+        }
         // Least lower bound of the cells skipped because they could not
         // hold a point nearer than the current k-th.
         let mut skipped = f64::INFINITY;

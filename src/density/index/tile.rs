@@ -10,7 +10,7 @@
 //! The k nearest are picked below a threshold learnt from the previous
 //! query, so only a handful of candidates are ever sorted.
 
-use crate::density::sigma::KBest;
+use crate::density::sigma::{KBest, surely_below_k};
 
 /// Per-worker cache of one block of cells; see the module doc.
 pub struct Tile<const D: usize> {
@@ -71,8 +71,16 @@ impl<const D: usize> Tile<D> {
     }
 
     /// Fills `kb` (cleared) with the k nearest gathered points to `q`,
-    /// skipping the point `exclude`.
-    pub fn nearest(&mut self, q: &[f32; D], exclude: Option<u32>, kb: &mut KBest) {
+    /// skipping the point `exclude`. With `accept_early`, returns true when
+    /// they already prove σ < 1 ([`surely_below_k`]); `kb` then holds them
+    /// unordered ([`KBest::set_unordered`]), which saves sorting them.
+    pub fn nearest(
+        &mut self,
+        q: &[f32; D],
+        exclude: Option<u32>,
+        kb: &mut KBest,
+        accept_early: bool,
+    ) -> bool {
         kb.clear();
         let n = self.ids.len();
         let k = kb.k();
@@ -122,6 +130,12 @@ impl<const D: usize> Tile<D> {
             pick.select_nth_unstable_by(k - 1, by_d2);
         }
         let pick = &mut pick[..m.min(k)];
+        if accept_early && m >= k && surely_below_k(pick.iter().map(|c| c.0), k) {
+            let worst2 = pick.iter().map(|c| c.0).fold(0.0, f64::max);
+            self.tau2 = worst2 * TAU_MARGIN;
+            kb.set_unordered(pick);
+            return true;
+        }
         pick.sort_unstable_by(by_d2);
         for &(d2, id) in pick.iter() {
             kb.push(d2, id);
@@ -129,6 +143,7 @@ impl<const D: usize> Tile<D> {
         if kb.is_full() {
             self.tau2 = kb.worst2() * TAU_MARGIN;
         }
+        false
     }
 }
 
@@ -162,7 +177,7 @@ mod tests {
             let q: [f32; 5] = std::array::from_fn(|_| next());
             let exclude = (i % 2 == 1).then_some(i as u32);
             let mut kb = KBest::new(k);
-            tile.nearest(&q, exclude, &mut kb);
+            assert!(!tile.nearest(&q, exclude, &mut kb, false));
             let mut all: Vec<f64> = pts
                 .iter()
                 .zip(0u32..)
