@@ -265,6 +265,44 @@ mod tests {
         assert_eq!(kb.ids(), &[0, 0, 0]);
     }
 
+    /// The unordered test never claims σ < 1 when the canonical σ is not,
+    /// on sums within a few ulps of k (where the orders can disagree), and
+    /// it does claim it when σ is clearly below 1.
+    #[test]
+    fn surely_below_k_implies_the_canonical_sigma_is_below_one() {
+        let mut rng = 0x9e3779b97f4a7c15u64;
+        let mut unit = || {
+            rng = rng
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (rng >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut claimed = 0;
+        for case in 0..20_000 {
+            let k = 1 + case % 60;
+            let mut d: Vec<f64> = (0..k).map(|_| unit() * 2.0).collect();
+            let total: f64 = d.iter().sum();
+            // Scale so the distances add up to k within a few ulps.
+            let nudge = 1.0 + (unit() - 0.5) * 64.0 * f64::EPSILON;
+            for x in d.iter_mut() {
+                *x *= k as f64 / total * nudge;
+            }
+            let mut d2: Vec<f64> = d.iter().map(|x| x * x).collect();
+            let surely = surely_below_k(d2.iter().copied(), k);
+            d2.sort_by(f64::total_cmp);
+            let canonical = sigma(&d2, k);
+            assert!(!surely || canonical < 1.0, "k = {k}: σ = {canonical}");
+            claimed += surely as usize;
+            let half: Vec<f64> = d2.iter().map(|x| x * 0.25).collect();
+            assert!(
+                surely_below_k(half.into_iter(), k),
+                "σ ≈ 0.5 must be claimed"
+            );
+        }
+        // Sums this close to k are left to the canonical order.
+        assert_eq!(claimed, 0);
+    }
+
     #[test]
     fn lower_bound_never_exceeds_sigma_of_a_completion() {
         let found = [0.04, 0.16];

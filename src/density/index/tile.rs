@@ -125,9 +125,11 @@ impl<const D: usize> Tile<D> {
             tau2 = f64::INFINITY;
         }
         let pick = &mut self.pick[..m];
-        let by_d2 = |a: &(f64, u32), b: &(f64, u32)| a.0.total_cmp(&b.0);
+        // Squared distances are never negative or NaN, so their bits order
+        // as they do: an integer comparison.
+        let by_d2 = |c: &(f64, u32)| c.0.to_bits();
         if m > k {
-            pick.select_nth_unstable_by(k - 1, by_d2);
+            pick.select_nth_unstable_by_key(k - 1, by_d2);
         }
         let pick = &mut pick[..m.min(k)];
         if accept_early && m >= k && surely_below_k(pick.iter().map(|c| c.0), k) {
@@ -136,7 +138,7 @@ impl<const D: usize> Tile<D> {
             kb.set_unordered(pick);
             return true;
         }
-        pick.sort_unstable_by(by_d2);
+        pick.sort_unstable_by_key(by_d2);
         for &(d2, id) in pick.iter() {
             kb.push(d2, id);
         }
