@@ -1,5 +1,6 @@
 //! A uniform grid over the image axes (and time, for animations) with an
-//! exact ring-by-ring k-nearest search.
+//! exact k-nearest search: the block around the query's cell from a
+//! [`Tile`], then ring by ring while the block cannot decide.
 //!
 //! Why a grid: within a neighbourhood the joint space is very anisotropic
 //! (the image extent is far larger than the colour extent), which a generic
