@@ -134,6 +134,8 @@ struct Hit {
     found: Found,
     /// How many distances of `kbuf` belong to this hit.
     klen: usize,
+    /// Whether they are in ascending order.
+    sorted: bool,
 }
 
 const SUB_BLOCK: usize = 256;
@@ -200,6 +202,7 @@ impl<const D: usize> Batch<D> {
         let hit = Hit {
             found: ACCEPTED,
             klen: 0,
+            sorted: true,
         };
         Batch {
             slots: vec![slot; len],
@@ -263,6 +266,7 @@ impl<const D: usize> Batch<D> {
                     hit.found = index.search(p, None, goal, &mut kb, &mut scratch);
                     seeds.remember(&kb);
                     hit.klen = kb.as_slice().len();
+                    hit.sorted = kb.is_sorted();
                     kd[..hit.klen].copy_from_slice(kb.as_slice());
                 }
             });
@@ -306,7 +310,7 @@ fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
         {
             hit.found
         } else {
-            kb.load(&batch.kbuf[j * k..j * k + hit.klen]);
+            kb.load(&batch.kbuf[j * k..j * k + hit.klen], hit.sorted);
             index.recheck(&slot.p, batch.base, hit.found, goal, kb, scratch)
         };
         if let (Some(sig), Some(v)) = (out.sigma.as_mut(), found.verdict.sigma()) {

@@ -13,7 +13,7 @@
 //! along one axis; rounding is monotone, so its computed distance is at least
 //! `sqrt(g * g)` computed the same way. That is the search's `bound`.
 
-use super::tile::Tile;
+use super::tile::{Sum, Tile};
 use super::{Found, NeighbourIndex, offer_suffix};
 use crate::density::sigma::{Goal, KBest, Verdict, judge};
 use crate::joint::dist2;
@@ -275,7 +275,8 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
                 .flat_map(|flat| self.cells[flat].iter().map(|e| (&e.p, e.id)));
             tile.fill(key, points);
         }
-        if tile.nearest(q, exclude, kb, goal == Goal::Decide) {
+        // Unless it accepts at once, `judge` below takes the block's bound.
+        if tile.nearest(q, exclude, kb, goal == Goal::Decide) == Sum::BelowK {
             return Found {
                 verdict: Verdict::Accept,
                 bound: 0.0,
@@ -346,7 +347,7 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
                         }
                         let cell = &self.cells[flat];
                         for e in cell.iter().rev().take_while(|e| e.id >= first_new) {
-                            kb.push(dist2(&e.p, q), e.id);
+                            kb.offer(dist2(&e.p, q), e.id);
                         }
                     });
                 }

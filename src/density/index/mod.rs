@@ -88,6 +88,6 @@ pub(crate) fn offer_suffix<const D: usize>(
     kb: &mut KBest,
 ) {
     for (p, id) in arena[first_new as usize..].iter().zip(first_new..) {
-        kb.push(crate::joint::dist2(p, q), id);
+        kb.offer(crate::joint::dist2(p, q), id);
     }
 }

@@ -10,7 +10,18 @@
 //! The k nearest are picked below a threshold learnt from the previous
 //! query, so only a handful of candidates are ever sorted.
 
-use crate::density::sigma::{KBest, surely_below_k};
+use crate::density::sigma::{KBest, sum_at_least_k, sum_below_k, unordered_sum};
+
+/// What the k nearest points of a tile prove on their own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Sum {
+    /// Their σ is below 1: the sample is accepted whatever lies outside.
+    BelowK,
+    /// Their σ is at least 1: if they are the k nearest overall, rejected.
+    AtLeastK,
+    /// Not known from the unordered sum (or not asked).
+    Unknown,
+}
 
 /// Per-worker cache of one block of cells; see the module doc.
 pub struct Tile<const D: usize> {
@@ -71,16 +82,17 @@ impl<const D: usize> Tile<D> {
     }
 
     /// Fills `kb` (cleared) with the k nearest gathered points to `q`,
-    /// skipping the point `exclude`. With `accept_early`, returns true when
-    /// they already prove σ < 1 ([`surely_below_k`]); `kb` then holds them
-    /// unordered ([`KBest::set_unordered`]), which saves sorting them.
+    /// skipping the point `exclude`. With `decide_early`, the unordered sum
+    /// of their distances may already tell the verdict ([`Sum`]); `kb` then
+    /// holds them unordered, which saves sorting them. Otherwise `kb` is
+    /// sorted and the result is [`Sum::Unknown`].
     pub fn nearest(
         &mut self,
         q: &[f32; D],
         exclude: Option<u32>,
         kb: &mut KBest,
-        accept_early: bool,
-    ) -> bool {
+        decide_early: bool,
+    ) -> Sum {
         kb.clear();
         let n = self.ids.len();
         let k = kb.k();
@@ -132,11 +144,20 @@ impl<const D: usize> Tile<D> {
             pick.select_nth_unstable_by_key(k - 1, by_d2);
         }
         let pick = &mut pick[..m.min(k)];
-        if accept_early && m >= k && surely_below_k(pick.iter().map(|c| c.0), k) {
-            let worst2 = pick.iter().map(|c| c.0).fold(0.0, f64::max);
-            self.tau2 = worst2 * TAU_MARGIN;
-            kb.set_unordered(pick);
-            return true;
+        if decide_early && m >= k {
+            let sum = unordered_sum(pick.iter().map(|c| c.0));
+            let verdict = if sum_below_k(sum, k) {
+                Sum::BelowK
+            } else if sum_at_least_k(sum, k) {
+                Sum::AtLeastK
+            } else {
+                Sum::Unknown
+            };
+            if verdict != Sum::Unknown {
+                kb.set_unordered(pick);
+                self.tau2 = kb.worst2() * TAU_MARGIN;
+                return verdict;
+            }
         }
         pick.sort_unstable_by_key(by_d2);
         for &(d2, id) in pick.iter() {
@@ -145,7 +166,7 @@ impl<const D: usize> Tile<D> {
         if kb.is_full() {
             self.tau2 = kb.worst2() * TAU_MARGIN;
         }
-        false
+        Sum::Unknown
     }
 }
 
@@ -179,7 +200,7 @@ mod tests {
             let q: [f32; 5] = std::array::from_fn(|_| next());
             let exclude = (i % 2 == 1).then_some(i as u32);
             let mut kb = KBest::new(k);
-            assert!(!tile.nearest(&q, exclude, &mut kb, false));
+            assert_eq!(tile.nearest(&q, exclude, &mut kb, false), Sum::Unknown);
             let mut all: Vec<f64> = pts
                 .iter()
                 .zip(0u32..)
