@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use super::index::grid::Grid;
 use super::index::kdtree::KdTree;
 use super::index::{Found, IndexKind, NeighbourIndex};
-use super::sigma::{Goal, KBest, Verdict, surely_below_k};
+use super::sigma::{Goal, KBest, Sum, Verdict, classify};
 use crate::dump::{Header, InvalidCounts, Record, Validity};
 use crate::joint::{JointSpace, dist2};
 
@@ -144,27 +144,35 @@ const SUB_BLOCK: usize = 256;
 /// on its next sample: neighbouring samples of a dump mostly share their
 /// neighbours, and k distances are far cheaper than a search. Exact: stored
 /// points never leave T, and any k of them whose σ is provably below 1
-/// prove the sample accepted ([`surely_below_k`]).
+/// prove the sample accepted ([`classify`]).
 struct Seeds {
     ids: Vec<u32>,
+    /// Their squared distances to the current query.
+    d2: Vec<f64>,
 }
 
 impl Seeds {
     fn new(k: usize) -> Seeds {
         Seeds {
             ids: Vec::with_capacity(k),
+            d2: Vec::with_capacity(k),
         }
     }
 
     /// True when the seeds prove `q` accepted.
     fn accept<const D: usize, I: NeighbourIndex<D>>(
-        &self,
+        &mut self,
         index: &I,
         q: &[f32; D],
         k: usize,
     ) -> bool {
-        self.ids.len() == k
-            && surely_below_k(self.ids.iter().map(|&id| dist2(index.point(id), q)), k)
+        if self.ids.len() != k {
+            return false;
+        }
+        self.d2.clear();
+        self.d2
+            .extend(self.ids.iter().map(|&id| dist2(index.point(id), q)));
+        classify(&self.d2, k) == Sum::BelowK
     }
 
     fn remember(&mut self, kb: &KBest) {

@@ -10,10 +10,9 @@
 /// enter σ do, when it is evaluated.
 ///
 /// The contents are kept either sorted ascending or, after
-/// [`KBest::set_unordered`] / [`KBest::load_unordered`], as an unordered set
-/// with its largest element tracked: most searches decide from an
-/// unordered sum ([`surely_below_k`], [`surely_at_least_k`]) and never pay
-/// for the sort. [`KBest::sort`] restores the order that the canonical σ
+/// [`KBest::set_unordered`] or an unsorted [`KBest::load`], as an unordered
+/// set with its largest element last: most searches decide from the
+/// distances in any order ([`classify`]) and never pay for the sort. [`KBest::sort`] restores the order that the canonical σ
 /// needs; [`judge`] calls it.
 ///
 /// Many candidates at once (a recheck's new points) go through
@@ -21,7 +20,7 @@
 /// [`KBest::settle`] then selects the k smallest in one pass.
 ///
 /// Invariants: `len ≤ k`; when `sorted`, `d2[..len]` ascends; otherwise
-/// `d2[worst_i]` is the largest of `d2[..len]` (when `len > 0`). Offered
+/// `d2[len - 1]` is still the largest of `d2[..len]`. Offered
 /// candidates wait in `spill` until [`KBest::settle`]; the contents are
 /// only read once it is empty.
 #[derive(Clone, Debug)]
@@ -34,8 +33,6 @@ pub struct KBest {
     /// Bumped on every change, so callers can skip re-judging.
     version: u64,
     sorted: bool,
-    /// Position of the largest distance while unordered.
-    worst_i: usize,
     /// Offered candidates not yet merged.
     spill: Vec<(f64, u32)>,
 }
@@ -50,7 +47,6 @@ impl KBest {
             ids: vec![u32::MAX; k],
             version: 0,
             sorted: true,
-            worst_i: 0,
             spill: Vec::new(),
         }
     }
@@ -66,47 +62,53 @@ impl KBest {
     }
 
     /// Replaces the contents with (squared distance, id) pairs in no order
-    /// (at most k of them).
-    pub fn set_unordered(&mut self, nearest: &[(f64, u32)]) {
+    /// (at most k of them); `largest_last` when the last is known to be the
+    /// largest (as `select_nth_unstable` leaves it).
+    pub fn set_unordered(&mut self, nearest: &[(f64, u32)], largest_last: bool) {
         self.spill.clear();
         self.len = nearest.len();
         for (i, &(d2, id)) in nearest.iter().enumerate() {
             self.d2[i] = d2;
             self.ids[i] = id;
         }
-        self.mark_unordered();
+        self.sorted = false;
+        if !largest_last {
+            self.largest_to_end();
+        }
+        self.version += 1;
     }
 
     /// Replaces the contents with squared distances of unknown points (≤ k
-    /// values), ascending when `sorted`, else in any order.
+    /// values): ascending when `sorted`, else in any order with the largest
+    /// last (as [`KBest::as_slice`] gives them).
     pub fn load(&mut self, d2: &[f64], sorted: bool) {
+        debug_assert!(if sorted {
+            d2.is_sorted()
+        } else {
+            d2.iter().all(|&x| x <= d2[d2.len() - 1])
+        });
         self.spill.clear();
         self.len = d2.len();
         self.d2[..self.len].copy_from_slice(d2);
         self.ids[..self.len].fill(u32::MAX);
-        if sorted {
-            debug_assert!(d2.is_sorted());
-            self.sorted = true;
-            self.version += 1;
-        } else {
-            self.mark_unordered();
-        }
-    }
-
-    fn mark_unordered(&mut self) {
-        self.sorted = false;
-        self.find_worst();
+        self.sorted = sorted;
         self.version += 1;
     }
 
-    fn find_worst(&mut self) {
-        let mut w = 0;
-        for i in 1..self.len {
-            if self.d2[i] > self.d2[w] {
-                w = i;
-            }
+    /// Moves the largest distance last, without branches on the data.
+    fn largest_to_end(&mut self) {
+        let (mut w, mut wb) = (0, 0u64);
+        for (i, d) in self.d2[..self.len].iter().enumerate() {
+            // Non-negative, non-NaN squared distances order as their bits.
+            let b = d.to_bits();
+            let gt = b > wb;
+            wb = if gt { b } else { wb };
+            w = if gt { i } else { w };
         }
-        self.worst_i = w;
+        if self.len > 0 {
+            self.d2.swap(w, self.len - 1);
+            self.ids.swap(w, self.len - 1);
+        }
     }
 
     /// Puts the contents in ascending order (the canonical σ needs it).
@@ -165,14 +167,19 @@ impl KBest {
         self.len == self.k
     }
 
-    /// Offers one squared distance (from [`crate::joint::dist2`]), keeping
-    /// sorted contents sorted.
+    /// Offers one squared distance (from [`crate::joint::dist2`]) and takes
+    /// it in at once if it is among the k smallest.
     #[inline]
     pub fn push(&mut self, dist2: f64, id: u32) {
-        if !self.sorted {
-            self.offer(dist2, id);
-            return;
+        if self.sorted {
+            self.push_sorted(dist2, id);
+        } else {
+            self.push_unordered(dist2, id);
         }
+    }
+
+    #[inline]
+    fn push_sorted(&mut self, dist2: f64, id: u32) {
         let mut i = self.len;
         if i == self.k {
             if dist2 >= self.d2[i - 1] {
@@ -192,8 +199,31 @@ impl KBest {
         self.version += 1;
     }
 
+    #[inline]
+    fn push_unordered(&mut self, dist2: f64, id: u32) {
+        let n = self.len;
+        if n < self.k {
+            self.d2[n] = dist2;
+            self.ids[n] = id;
+            self.len += 1;
+            // Keep the largest last.
+            if n > 0 && dist2 < self.d2[n - 1] {
+                self.d2.swap(n - 1, n);
+                self.ids.swap(n - 1, n);
+            }
+        } else {
+            if dist2 >= self.d2[n - 1] {
+                return;
+            }
+            self.d2[n - 1] = dist2;
+            self.ids[n - 1] = id;
+            self.largest_to_end();
+        }
+        self.version += 1;
+    }
+
     /// Offers one squared distance to be merged by [`KBest::settle`]:
-    /// cheaper than [`KBest::push`] when several may enter.
+    /// cheaper than [`KBest::push`] when many may enter.
     #[inline]
     pub fn offer(&mut self, dist2: f64, id: u32) {
         if dist2 < self.worst2() {
@@ -202,22 +232,30 @@ impl KBest {
         }
     }
 
-    /// Merges the offered candidates: the k smallest of contents and
-    /// candidates, unordered.
+    /// Merges the offered candidates into the contents.
     pub fn settle(&mut self) {
+        /// Up to this many, one at a time; beyond, one selection.
+        const ONE_BY_ONE: usize = 8;
         if self.spill.is_empty() {
             return;
         }
         let mut all = std::mem::take(&mut self.spill);
-        all.extend((0..self.len).map(|i| (self.d2[i], self.ids[i])));
-        let k = self.k;
-        if all.len() > k {
-            // Non-negative, non-NaN squared distances order as their bits.
-            all.select_nth_unstable_by_key(k - 1, |c| c.0.to_bits());
-            all.truncate(k);
+        if all.len() <= ONE_BY_ONE {
+            for &(d2, id) in &all {
+                self.push(d2, id);
+            }
+            all.clear();
+        } else {
+            all.extend((0..self.len).map(|i| (self.d2[i], self.ids[i])));
+            let k = self.k;
+            let selected = all.len() > k;
+            if selected {
+                all.select_nth_unstable_by_key(k - 1, |c| c.0.to_bits());
+                all.truncate(k);
+            }
+            self.set_unordered(&all, selected);
+            all.clear();
         }
-        self.set_unordered(&all);
-        all.clear();
         self.spill = all;
     }
 
@@ -227,12 +265,10 @@ impl KBest {
     pub fn worst2(&self) -> f64 {
         // Before `settle` this is the k-th of the contents alone: an upper
         // bound, so pruning with it stays exact.
-        if !self.is_full() {
-            f64::INFINITY
-        } else if self.sorted {
+        if self.is_full() {
             self.d2[self.k - 1]
         } else {
-            self.d2[self.worst_i]
+            f64::INFINITY
         }
     }
 
@@ -250,12 +286,16 @@ impl KBest {
         sigma(self.as_slice(), self.k)
     }
 
-    /// The unordered sum of the contents' distances, when full.
+    /// What the contents prove on their own ([`classify`]); `Unknown`
+    /// while fewer than k.
     #[inline]
-    pub fn unordered_sum(&mut self) -> Option<f64> {
+    pub fn classify(&mut self) -> Sum {
         self.settle();
-        self.is_full()
-            .then(|| unordered_sum(self.as_slice().iter().copied()))
+        if self.is_full() {
+            classify(self.as_slice(), self.k)
+        } else {
+            Sum::Unknown
+        }
     }
 }
 
@@ -282,49 +322,75 @@ pub fn sigma(sorted2: &[f64], k: usize) -> f64 {
     s / k as f64
 }
 
-/// The square roots of `d2` added in an order of our choosing (four
-/// partial sums, so that independent additions pipeline).
+/// The square roots of `d2` added in an order of our choosing: four
+/// partial sums over consecutive lanes, which the compiler turns into
+/// packed square roots and additions.
 #[inline]
-pub fn unordered_sum(d2: impl Iterator<Item = f64>) -> f64 {
+pub fn unordered_sum(d2: &[f64]) -> f64 {
     let mut s = [0.0f64; 4];
-    for (i, x) in d2.enumerate() {
-        s[i & 3] += x.sqrt();
+    let chunks = d2.chunks_exact(4);
+    let rest = chunks.remainder();
+    for c in chunks {
+        for j in 0..4 {
+            s[j] += c[j].sqrt();
+        }
+    }
+    for (j, &x) in rest.iter().enumerate() {
+        s[j] += x.sqrt();
     }
     (s[0] + s[1]) + (s[2] + s[3])
 }
 
-/// The relative margin that separates an unordered sum of k non-negative
-/// values from the canonical one: any two orders differ by at most
-/// 2γ₍k−1₎ ≈ 2k·2⁻⁵³ of the sum; k·2⁻⁴⁰ covers that and the final division
-/// for any k ≤ 2³⁰.
+/// The relative margin that separates a sum of k non-negative values added
+/// in any order from the exact and the canonical ones: any two orders
+/// differ by at most 2γ₍k−1₎ ≈ 2k·2⁻⁵³ of the sum; k·2⁻⁴⁰ covers that and
+/// the final division for any k ≤ 2³⁰.
 #[inline]
 fn order_margin(k: usize) -> f64 {
     debug_assert!(k <= 1 << 30);
     k as f64 * f64::EPSILON * 4096.0
 }
 
-/// True when an [`unordered_sum`] of k distances proves that their
-/// canonical σ is below 1.
-#[inline]
-pub fn sum_below_k(sum: f64, k: usize) -> bool {
-    let kf = k as f64;
-    sum < kf * (1.0 - order_margin(k))
+/// What k squared distances, in any order, prove about their canonical σ
+/// ([`sigma`]) on their own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Sum {
+    /// σ < 1: any k stored points this close accept the sample.
+    BelowK,
+    /// σ ≥ 1: rejected, if they are the k nearest.
+    AtLeastK,
+    /// Too close to 1 to tell without the canonical order.
+    Unknown,
 }
 
-/// True when an [`unordered_sum`] of k distances proves that their
-/// canonical σ is at least 1.
+/// Classifies k squared distances given in any order (see [`Sum`]) from
+/// their [`unordered_sum`], with a margin of [`order_margin`] on either
+/// side of k, so no order of additions can flip it.
+///
+/// Cheaper tests without square roots (Σd² < k proves σ < 1 since the mean
+/// is at most the root mean square; Σd² ≥ k·√d²_max proves σ ≥ 1) were
+/// measured on the benchmark dump and rarely decide: the k nearest spread
+/// too widely. They cost more than they saved.
+///
+/// ```
+/// use pathdensity::density::sigma::{Sum, classify};
+/// assert_eq!(classify(&[0.25, 0.25], 2), Sum::BelowK);
+/// assert_eq!(classify(&[4.0, 1.0], 2), Sum::AtLeastK);
+/// assert_eq!(classify(&[1.0, 1.0], 2), Sum::Unknown);
+/// ```
 #[inline]
-pub fn sum_at_least_k(sum: f64, k: usize) -> bool {
+pub fn classify(d2: &[f64], k: usize) -> Sum {
+    debug_assert_eq!(d2.len(), k);
+    let m = order_margin(k);
     let kf = k as f64;
-    sum >= kf * (1.0 + order_margin(k))
-}
-
-/// True when the square roots of `d2` (k values, any order) provably add
-/// up to less than k in the canonical order, so that their canonical σ is
-/// below 1.
-#[inline]
-pub fn surely_below_k(d2: impl Iterator<Item = f64>, k: usize) -> bool {
-    sum_below_k(unordered_sum(d2), k)
+    let sum = unordered_sum(d2);
+    if sum < kf * (1.0 - m) {
+        Sum::BelowK
+    } else if sum >= kf * (1.0 + m) {
+        Sum::AtLeastK
+    } else {
+        Sum::Unknown
+    }
 }
 
 /// A lower bound on σ when every point not yet seen lies at distance ≥
@@ -390,16 +456,12 @@ pub fn judge(kb: &mut KBest, bound: f64, goal: Goal) -> Option<Verdict> {
     let k = kb.k();
     kb.settle();
     let complete = bound == f64::INFINITY || kb.worst() <= bound;
-    if goal == Goal::Decide
-        && !kb.is_sorted()
-        && let Some(sum) = kb.unordered_sum()
-    {
-        if sum_below_k(sum, k) {
-            return Some(Verdict::Accept);
-        }
-        if complete && sum_at_least_k(sum, k) {
+    if goal == Goal::Decide && !kb.is_sorted() {
+        match kb.classify() {
+            Sum::BelowK => return Some(Verdict::Accept),
             // The k found are the k nearest, and their σ ≥ 1.
-            return Some(Verdict::Reject);
+            Sum::AtLeastK if complete => return Some(Verdict::Reject),
+            _ => {}
         }
     }
     kb.sort();
@@ -431,9 +493,9 @@ mod tests {
         assert_eq!(kb.ids(), &[0, 0, 0]);
     }
 
-    /// The unordered tests never claim σ < 1 or σ ≥ 1 when the canonical σ
-    /// says otherwise, on sums within a few ulps of k (where the orders can
-    /// disagree), and they do claim it when σ is clearly below or above 1.
+    /// `classify` never claims σ < 1 or σ ≥ 1 when the canonical σ says
+    /// otherwise, on sums within a few ulps of k (where the orders can
+    /// disagree), and it does claim it when σ is clearly below or above 1.
     #[test]
     fn unordered_sums_never_contradict_the_canonical_sigma() {
         let mut rng = 0x9e3779b97f4a7c15u64;
@@ -454,20 +516,19 @@ mod tests {
                 *x *= k as f64 / total * nudge;
             }
             let mut d2: Vec<f64> = d.iter().map(|x| x * x).collect();
-            let sum = unordered_sum(d2.iter().copied());
-            let (below, at_least) = (sum_below_k(sum, k), sum_at_least_k(sum, k));
+            let sum = classify(&d2, k);
             d2.sort_by(f64::total_cmp);
             let canonical = sigma(&d2, k);
-            assert!(!below || canonical < 1.0, "k = {k}: σ = {canonical}");
-            assert!(!at_least || canonical >= 1.0, "k = {k}: σ = {canonical}");
-            claimed += below as usize + at_least as usize;
+            match sum {
+                Sum::BelowK => assert!(canonical < 1.0, "k = {k}: σ = {canonical}"),
+                Sum::AtLeastK => assert!(canonical >= 1.0, "k = {k}: σ = {canonical}"),
+                Sum::Unknown => {}
+            }
+            claimed += (sum != Sum::Unknown) as usize;
             let half: Vec<f64> = d2.iter().map(|x| x * 0.25).collect();
-            assert!(
-                surely_below_k(half.into_iter(), k),
-                "σ ≈ 0.5 must be claimed"
-            );
-            let double = unordered_sum(d2.iter().map(|x| x * 4.0));
-            assert!(sum_at_least_k(double, k), "σ ≈ 2 must be claimed");
+            assert_eq!(classify(&half, k), Sum::BelowK, "σ ≈ 0.5");
+            let double: Vec<f64> = d2.iter().map(|x| x * 4.0).collect();
+            assert_eq!(classify(&double, k), Sum::AtLeastK, "σ ≈ 2");
         }
         // Sums this close to k are left to the canonical order.
         assert_eq!(claimed, 0);
@@ -482,7 +543,7 @@ mod tests {
         for settle_every in [1, 2, 100] {
             let mut sorted = KBest::new(4);
             let mut unordered = KBest::new(4);
-            unordered.set_unordered(&[(49.0, 100), (64.0, 101)]);
+            unordered.set_unordered(&[(64.0, 101), (49.0, 100)], false);
             assert_eq!(unordered.worst2(), f64::INFINITY);
             for (i, &d) in ds.iter().enumerate() {
                 sorted.push(d, i as u32);
@@ -516,7 +577,7 @@ mod tests {
                 let mut rev: Vec<(f64, u32)> = d2.iter().rev().map(|&d| (d, 0)).collect();
                 rev.rotate_left(3);
                 let mut unordered = KBest::new(10);
-                unordered.set_unordered(&rev);
+                unordered.set_unordered(&rev, false);
                 let a = judge(&mut sorted, bound, Goal::Decide).map(Verdict::accepted);
                 let b = judge(&mut unordered, bound, Goal::Decide).map(Verdict::accepted);
                 assert_eq!(a, b, "scale {scale}, bound {bound}");

@@ -13,9 +13,9 @@
 //! along one axis; rounding is monotone, so its computed distance is at least
 //! `sqrt(g * g)` computed the same way. That is the search's `bound`.
 
-use super::tile::{Sum, Tile};
+use super::tile::Tile;
 use super::{Found, NeighbourIndex, offer_suffix};
-use crate::density::sigma::{Goal, KBest, Verdict, judge};
+use crate::density::sigma::{Goal, KBest, Sum, Verdict, judge};
 use crate::joint::dist2;
 
 /// Upper limit on the number of cells; the cell side doubles until it fits.

@@ -10,18 +10,7 @@
 //! The k nearest are picked below a threshold learnt from the previous
 //! query, so only a handful of candidates are ever sorted.
 
-use crate::density::sigma::{KBest, sum_at_least_k, sum_below_k, unordered_sum};
-
-/// What the k nearest points of a tile prove on their own.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Sum {
-    /// Their σ is below 1: the sample is accepted whatever lies outside.
-    BelowK,
-    /// Their σ is at least 1: if they are the k nearest overall, rejected.
-    AtLeastK,
-    /// Not known from the unordered sum (or not asked).
-    Unknown,
-}
+use crate::density::sigma::{KBest, Sum};
 
 /// Per-worker cache of one block of cells; see the module doc.
 pub struct Tile<const D: usize> {
@@ -82,8 +71,8 @@ impl<const D: usize> Tile<D> {
     }
 
     /// Fills `kb` (cleared) with the k nearest gathered points to `q`,
-    /// skipping the point `exclude`. With `decide_early`, the unordered sum
-    /// of their distances may already tell the verdict ([`Sum`]); `kb` then
+    /// skipping the point `exclude`. With `decide_early`, their distances
+    /// in any order may already tell the verdict ([`KBest::classify`]); `kb` then
     /// holds them unordered, which saves sorting them. Otherwise `kb` is
     /// sorted and the result is [`Sum::Unknown`].
     pub fn nearest(
@@ -143,29 +132,19 @@ impl<const D: usize> Tile<D> {
         if m > k {
             pick.select_nth_unstable_by_key(k - 1, by_d2);
         }
-        let pick = &mut pick[..m.min(k)];
-        if decide_early && m >= k {
-            let sum = unordered_sum(pick.iter().map(|c| c.0));
-            let verdict = if sum_below_k(sum, k) {
-                Sum::BelowK
-            } else if sum_at_least_k(sum, k) {
-                Sum::AtLeastK
-            } else {
-                Sum::Unknown
-            };
-            if verdict != Sum::Unknown {
-                kb.set_unordered(pick);
-                self.tau2 = kb.worst2() * TAU_MARGIN;
-                return verdict;
-            }
-        }
-        pick.sort_unstable_by_key(by_d2);
-        for &(d2, id) in pick.iter() {
-            kb.push(d2, id);
-        }
+        let pick = &pick[..m.min(k)];
+        // After the selection the k-th smallest is last.
+        kb.set_unordered(pick, m > k);
         if kb.is_full() {
             self.tau2 = kb.worst2() * TAU_MARGIN;
         }
+        if decide_early {
+            let verdict = kb.classify();
+            if verdict != Sum::Unknown {
+                return verdict;
+            }
+        }
+        kb.sort();
         Sum::Unknown
     }
 }
