@@ -566,6 +566,45 @@ mod tests {
         }
     }
 
+    /// For any k, the unordered contents keep their largest last and hold
+    /// the k smallest of everything offered or pushed.
+    #[test]
+    fn unordered_kbest_holds_the_k_smallest_for_any_k() {
+        let mut rng = 7u64;
+        let mut next = || {
+            rng = rng
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((rng >> 40) % 1000) as f64 / 64.0
+        };
+        for k in [1, 2, 3, 4, 5, 7, 13, 50] {
+            let mut kb = KBest::new(k);
+            let first: Vec<(f64, u32)> = (0..k as u32).map(|i| (next(), i)).collect();
+            kb.set_unordered(&first, false);
+            let mut all: Vec<f64> = first.iter().map(|c| c.0).collect();
+            for round in 0..40u32 {
+                for j in 0..(round % 11) {
+                    let d = next();
+                    all.push(d);
+                    if j % 2 == 0 {
+                        kb.offer(d, 1000 + round);
+                    } else {
+                        kb.settle();
+                        kb.push(d, 1000 + round);
+                    }
+                }
+                kb.settle();
+                let max = kb.as_slice().iter().copied().fold(0.0, f64::max);
+                assert_eq!(kb.as_slice()[k - 1], max, "k = {k}");
+                let mut want = all.clone();
+                want.sort_by(f64::total_cmp);
+                let mut got = kb.as_slice().to_vec();
+                got.sort_by(f64::total_cmp);
+                assert_eq!(got, want[..k], "k = {k}");
+            }
+        }
+    }
+
     /// `judge` on unordered contents reaches the verdict sorting would.
     #[test]
     fn judge_decides_unordered_contents_like_sorted_ones() {
