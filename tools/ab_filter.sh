@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# Same-period A/B of two pathdensity builds: runs `filter --no-html` with
+# each binary in turn (interleaved, so machine drift hits both alike) and
+# prints the median replay time (streaming + final pass, from report.json).
+#
+#   tools/ab_filter.sh OLD_BIN NEW_BIN DUMP K THREADS RUNS
+set -euo pipefail
+[ $# -eq 6 ] || { echo "usage: $0 OLD_BIN NEW_BIN DUMP K THREADS RUNS" >&2; exit 2; }
+old=$1 new=$2 dump=$3 k=$4 threads=$5 runs=$6
+out=$(mktemp -d)
+trap 'rm -rf "$out"' EXIT
+for _ in $(seq "$runs"); do
+  for side in old new; do
+    bin=$old; [ "$side" = new ] && bin=$new
+    "$bin" filter "$dump" -o "$out/$side" --k "$k" --threads "$threads" --no-html >/dev/null
+    python3 -c "import json,sys; t=json.load(open(sys.argv[1]))['timing']; print(sys.argv[2], t['streaming_seconds'] + t['final_pass_seconds'])" "$out/$side/report.json" "$side"
+  done
+done | python3 -c "
+import sys, statistics
+d = {'old': [], 'new': []}
+for line in sys.stdin:
+    side, v = line.split()
+    d[side].append(float(v))
+o, n = statistics.median(d['old']), statistics.median(d['new'])
+print(f'k={sys.argv[1]} threads={sys.argv[2]}: old {o:.3f} s, new {n:.3f} s, old/new {o / n:.2f}x ({len(d[\"new\"])} runs each)')
+" "$k" "$threads"
