@@ -65,6 +65,17 @@ fn inside(n: u32, u: f32) -> f32 {
     }
 }
 
+/// A stream of uniform f64 in [0, 1) for unit tests: SplitMix64 over a
+/// counter, so each test names its seed and needs no generator of its own.
+#[cfg(test)]
+pub(crate) fn test_units(seed: u64) -> impl FnMut() -> f64 {
+    let mut i = 0u64;
+    move || {
+        i += 1;
+        (mix(seed ^ mix(i)) >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
 fn uniform(h: u64) -> f32 {
     (h >> 40) as f32 / (1u64 << 24) as f32
 }

@@ -158,13 +158,8 @@ mod tests {
     /// squared distance, whatever threshold the previous query left.
     #[test]
     fn tile_nearest_equals_sorting_every_distance() {
-        let mut rng = 12345u64;
-        let mut next = || {
-            rng = rng
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (rng >> 40) as f32 / (1u64 << 24) as f32 * 4.0
-        };
+        let mut unit = crate::synth::test_units(12345);
+        let mut next = || (unit() * 4.0) as f32;
         let pts: Vec<[f32; 5]> = (0..300).map(|_| std::array::from_fn(|_| next())).collect();
         let mut tile = Tile::<5>::default();
         tile.fill((0, 0), pts.iter().zip(0u32..));
