@@ -129,14 +129,17 @@ impl KBest {
                 self.ids[i] = p.1;
             }
         } else {
-            let mut v: Vec<(u64, u32)> = (0..self.len)
-                .map(|i| (self.d2[i].to_bits(), self.ids[i]))
-                .collect();
-            v.sort_unstable_by_key(|p| p.0);
-            for (i, p) in v.into_iter().enumerate() {
-                self.d2[i] = f64::from_bits(p.0);
-                self.ids[i] = p.1;
+            // Large k: the (now empty) spill is the scratch, so sorting
+            // allocates nothing once it has grown.
+            let mut v = std::mem::take(&mut self.spill);
+            v.extend((0..self.len).map(|i| (self.d2[i], self.ids[i])));
+            v.sort_unstable_by_key(|p| p.0.to_bits());
+            for (i, &(d2, id)) in v.iter().enumerate() {
+                self.d2[i] = d2;
+                self.ids[i] = id;
             }
+            v.clear();
+            self.spill = v;
         }
         self.sorted = true;
     }
@@ -561,13 +564,14 @@ mod tests {
     }
 
     /// For any k, the unordered contents keep their largest last and hold
-    /// the k smallest of everything offered or pushed.
+    /// the k smallest of everything offered or pushed; sorting them (on the
+    /// stack up to 64, in the reused spill beyond) gives them ascending.
     #[test]
     fn unordered_kbest_holds_the_k_smallest_for_any_k() {
         let mut unit = crate::synth::test_units(7);
         // Coarse values, so that ties occur.
         let mut next = || (unit() * 1000.0).floor() / 64.0;
-        for k in [1, 2, 3, 4, 5, 7, 13, 50] {
+        for k in [1, 2, 3, 4, 5, 7, 13, 50, 100] {
             let mut kb = KBest::new(k);
             let first: Vec<(f64, u32)> = (0..k as u32).map(|i| (next(), i)).collect();
             kb.set_unordered(&first, false);
@@ -592,6 +596,10 @@ mod tests {
                 got.sort_by(f64::total_cmp);
                 assert_eq!(got, want[..k], "k = {k}");
             }
+            kb.sort();
+            let mut want = all.clone();
+            want.sort_by(f64::total_cmp);
+            assert_eq!(kb.as_slice(), &want[..k], "sorted, k = {k}");
         }
     }
 
