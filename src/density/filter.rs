@@ -261,23 +261,25 @@ impl<const D: usize> Batch<D> {
             .par_chunks_mut(SUB_BLOCK)
             .zip(self.kbuf[..valid * k].par_chunks_mut(SUB_BLOCK * k))
             .zip(self.order.par_chunks(SUB_BLOCK))
-            .for_each(|((hits, kbuf), order)| {
-                let mut kb = KBest::new(k);
-                let mut scratch = I::Scratch::default();
-                let mut seeds = Seeds::new(k);
-                for ((hit, kd), &key) in hits.iter_mut().zip(kbuf.chunks_mut(k)).zip(order) {
-                    let p = &slots[(key & u32::MAX as u64) as usize].p;
-                    if goal == Goal::Decide && seeds.accept(index, p, k) {
-                        hit.found = ACCEPTED;
-                        continue;
+            // One worker state per rayon job rather than per sub-block: the
+            // tile's buffers and cached block carry over between sub-blocks.
+            .for_each_init(
+                || (KBest::new(k), I::Scratch::default(), Seeds::new(k)),
+                |(kb, scratch, seeds), ((hits, kbuf), order)| {
+                    for ((hit, kd), &key) in hits.iter_mut().zip(kbuf.chunks_mut(k)).zip(order) {
+                        let p = &slots[(key & u32::MAX as u64) as usize].p;
+                        if goal == Goal::Decide && seeds.accept(index, p, k) {
+                            hit.found = ACCEPTED;
+                            continue;
+                        }
+                        hit.found = index.search(p, None, goal, kb, scratch);
+                        seeds.remember(kb);
+                        hit.klen = kb.as_slice().len();
+                        hit.sorted = kb.is_sorted();
+                        kd[..hit.klen].copy_from_slice(kb.as_slice());
                     }
-                    hit.found = index.search(p, None, goal, &mut kb, &mut scratch);
-                    seeds.remember(&kb);
-                    hit.klen = kb.as_slice().len();
-                    hit.sorted = kb.is_sorted();
-                    kd[..hit.klen].copy_from_slice(kb.as_slice());
-                }
-            });
+                },
+            );
     }
 }
 
