@@ -12,8 +12,9 @@
 /// The contents are kept either sorted ascending or, after
 /// [`KBest::set_unordered`] or an unsorted [`KBest::load`], as an unordered
 /// set with its largest element last: most searches decide from the
-/// distances in any order ([`classify`]) and never pay for the sort. [`KBest::sort`] restores the order that the canonical σ
-/// needs; [`judge`] calls it.
+/// distances in any order ([`classify`]) and never pay for the sort.
+/// [`KBest::sort`] restores the order that the canonical σ needs; [`judge`]
+/// calls it.
 ///
 /// Many candidates at once (a recheck's new points) go through
 /// [`KBest::offer`], which only collects those below the current k-th;
@@ -111,36 +112,34 @@ impl KBest {
         }
     }
 
+    /// The contents and the offered candidates together, in the spill's
+    /// buffer (so nothing is allocated once it has grown); give it back with
+    /// [`KBest::restore_spill`].
+    fn take_all(&mut self) -> Vec<(f64, u32)> {
+        let mut all = std::mem::take(&mut self.spill);
+        all.extend((0..self.len).map(|i| (self.d2[i], self.ids[i])));
+        all
+    }
+
+    fn restore_spill(&mut self, mut all: Vec<(f64, u32)>) {
+        all.clear();
+        self.spill = all;
+    }
+
     /// Puts the contents in ascending order (the canonical σ needs it).
     pub fn sort(&mut self) {
         self.settle();
         if self.sorted {
             return;
         }
-        let mut pairs: [(u64, u32); 64] = [(0, 0); 64];
-        if self.len <= pairs.len() {
-            // Non-negative, non-NaN squared distances order as their bits.
-            for (i, p) in pairs[..self.len].iter_mut().enumerate() {
-                *p = (self.d2[i].to_bits(), self.ids[i]);
-            }
-            pairs[..self.len].sort_unstable_by_key(|p| p.0);
-            for (i, p) in pairs[..self.len].iter().enumerate() {
-                self.d2[i] = f64::from_bits(p.0);
-                self.ids[i] = p.1;
-            }
-        } else {
-            // Large k: the (now empty) spill is the scratch, so sorting
-            // allocates nothing once it has grown.
-            let mut v = std::mem::take(&mut self.spill);
-            v.extend((0..self.len).map(|i| (self.d2[i], self.ids[i])));
-            v.sort_unstable_by_key(|p| p.0.to_bits());
-            for (i, &(d2, id)) in v.iter().enumerate() {
-                self.d2[i] = d2;
-                self.ids[i] = id;
-            }
-            v.clear();
-            self.spill = v;
+        let mut all = self.take_all();
+        // Non-negative, non-NaN squared distances order as their bits.
+        all.sort_unstable_by_key(|c| c.0.to_bits());
+        for (i, &(d2, id)) in all.iter().enumerate() {
+            self.d2[i] = d2;
+            self.ids[i] = id;
         }
+        self.restore_spill(all);
         self.sorted = true;
     }
 
@@ -242,24 +241,23 @@ impl KBest {
         if self.spill.is_empty() {
             return;
         }
-        let mut all = std::mem::take(&mut self.spill);
-        if all.len() <= ONE_BY_ONE {
-            for &(d2, id) in &all {
+        if self.spill.len() <= ONE_BY_ONE {
+            let spill = std::mem::take(&mut self.spill);
+            for &(d2, id) in &spill {
                 self.push(d2, id);
             }
-            all.clear();
-        } else {
-            all.extend((0..self.len).map(|i| (self.d2[i], self.ids[i])));
-            let k = self.k;
-            let selected = all.len() > k;
-            if selected {
-                all.select_nth_unstable_by_key(k - 1, |c| c.0.to_bits());
-                all.truncate(k);
-            }
-            self.set_unordered(&all, selected);
-            all.clear();
+            self.restore_spill(spill);
+            return;
         }
-        self.spill = all;
+        let mut all = self.take_all();
+        let k = self.k;
+        let selected = all.len() > k;
+        if selected {
+            all.select_nth_unstable_by_key(k - 1, |c| c.0.to_bits());
+            all.truncate(k);
+        }
+        self.set_unordered(&all, selected);
+        self.restore_spill(all);
     }
 
     /// The k-th smallest squared distance so far, +∞ while fewer than k are
@@ -564,8 +562,8 @@ mod tests {
     }
 
     /// For any k, the unordered contents keep their largest last and hold
-    /// the k smallest of everything offered or pushed; sorting them (on the
-    /// stack up to 64, in the reused spill beyond) gives them ascending.
+    /// the k smallest of everything offered or pushed; sorting them gives
+    /// them ascending.
     #[test]
     fn unordered_kbest_holds_the_k_smallest_for_any_k() {
         let mut unit = crate::synth::test_units(7);

@@ -7,8 +7,8 @@
 //! squared distances to all of them are then a few straight loops the
 //! compiler vectorises, with the canonical arithmetic of
 //! [`crate::joint::dist2`] (each point's terms added in coordinate order).
-//! The k nearest are picked below a threshold learnt from the previous
-//! query, so only a handful of candidates are ever sorted.
+//! The k nearest are selected among the few candidates below a threshold
+//! learnt from the previous query, and handed to [`KBest`] unsorted.
 
 use crate::density::sigma::{KBest, Sum};
 
@@ -70,11 +70,12 @@ impl<const D: usize> Tile<D> {
         }
     }
 
-    /// Fills `kb` (cleared) with the k nearest gathered points to `q`,
-    /// skipping the point `exclude`. With `decide_early`, their distances
-    /// in any order may already tell the verdict ([`KBest::classify`]); `kb` then
-    /// holds them unordered, which saves sorting them. Otherwise `kb` is
-    /// sorted and the result is [`Sum::Unknown`].
+    /// Replaces the contents of `kb` with the k nearest gathered points to
+    /// `q`, skipping the point `exclude`. With `decide_early`, their
+    /// distances in any order may already tell the verdict
+    /// ([`KBest::classify`]); `kb` then holds them unordered, which saves
+    /// sorting them. Otherwise `kb` is sorted and the result is
+    /// [`Sum::Unknown`].
     pub fn nearest(
         &mut self,
         q: &[f32; D],
@@ -82,7 +83,6 @@ impl<const D: usize> Tile<D> {
         kb: &mut KBest,
         decide_early: bool,
     ) -> Sum {
-        kb.clear();
         let n = self.ids.len();
         let k = kb.k();
         self.d2.clear();
