@@ -48,6 +48,10 @@ pub struct FilterParams {
     /// Samples per parallel batch; results do not depend on it.
     #[serde(skip)]
     pub batch: usize,
+    /// The share of searches left to the in-order pass (see [`Deferral`]);
+    /// `None` adapts it to balance the threads. Results do not depend on it.
+    #[serde(skip)]
+    pub deferral: Option<f64>,
 }
 
 impl Default for FilterParams {
@@ -58,6 +62,7 @@ impl Default for FilterParams {
             index: IndexKind::Grid,
             exact_sigma: false,
             batch: 4096,
+            deferral: None,
         }
     }
 }
@@ -136,6 +141,8 @@ struct Hit {
     klen: usize,
     /// Whether they are in ascending order.
     sorted: bool,
+    /// Not searched: the in-order pass searches the current T instead.
+    deferred: bool,
 }
 
 const SUB_BLOCK: usize = 256;
@@ -146,6 +153,8 @@ const SUB_BLOCK: usize = 256;
 /// points never leave T, and any k of them whose σ is provably below 1
 /// prove the sample accepted ([`classify`]).
 struct Seeds {
+    /// The locality key of the sample they were found for.
+    key: u32,
     ids: Vec<u32>,
     /// Their squared distances to the current query.
     d2: Vec<f64>,
@@ -154,6 +163,7 @@ struct Seeds {
 impl Seeds {
     fn new(k: usize) -> Seeds {
         Seeds {
+            key: u32::MAX,
             ids: Vec::with_capacity(k),
             d2: Vec::with_capacity(k),
         }
@@ -175,8 +185,9 @@ impl Seeds {
         classify(&self.d2, k) == Sum::BelowK
     }
 
-    fn remember(&mut self, kb: &KBest) {
+    fn remember(&mut self, kb: &KBest, key: u32) {
         if kb.is_full() {
+            self.key = key;
             self.ids.clear();
             self.ids.extend_from_slice(kb.ids());
         }
@@ -211,6 +222,7 @@ impl<const D: usize> Batch<D> {
             found: ACCEPTED,
             klen: 0,
             sorted: true,
+            deferred: false,
         };
         Batch {
             slots: vec![slot; len],
@@ -231,6 +243,7 @@ impl<const D: usize> Batch<D> {
         header: &Header,
         params: &FilterParams,
         goal: Goal,
+        defer: f64,
     ) {
         let k = params.k;
         let m = recs.len();
@@ -264,22 +277,79 @@ impl<const D: usize> Batch<D> {
             // One worker state per rayon job rather than per sub-block: the
             // tile's buffers and cached block carry over between sub-blocks.
             .for_each_init(
-                || (KBest::new(k), I::Scratch::default(), Seeds::new(k)),
-                |(kb, scratch, seeds), ((hits, kbuf), order)| {
+                || (KBest::new(k), I::Scratch::default(), Seeds::new(k), 0.0),
+                |(kb, scratch, seeds, share), ((hits, kbuf), order)| {
                     for ((hit, kd), &key) in hits.iter_mut().zip(kbuf.chunks_mut(k)).zip(order) {
                         let p = &slots[(key & u32::MAX as u64) as usize].p;
+                        let cell = (key >> 32) as u32;
+                        hit.deferred = false;
                         if goal == Goal::Decide && seeds.accept(index, p, k) {
                             hit.found = ACCEPTED;
                             continue;
                         }
+                        // Defer a share of the searches, but search the
+                        // first sample of each cell, whose neighbours seed
+                        // the next samples.
+                        if seeds.key == cell {
+                            *share += defer;
+                            if *share >= 1.0 {
+                                *share -= 1.0;
+                                hit.deferred = true;
+                                continue;
+                            }
+                        }
                         hit.found = index.search(p, None, goal, kb, scratch);
-                        seeds.remember(kb);
+                        seeds.remember(kb, cell);
                         hit.klen = kb.as_slice().len();
                         hit.sorted = kb.is_sorted();
                         kd[..hit.klen].copy_from_slice(kb.as_slice());
                     }
                 },
             );
+    }
+}
+
+/// How many searches the in-order pass takes over from the parallel one.
+///
+/// A sample searched in parallel against the lagging T mostly needs a
+/// recheck in order as well (at k = 50 on the benchmark dump, 2.4 M of
+/// 4.2 M do). Searching it in order instead, against the current T, costs
+/// the in-order pass a little more than the recheck would but saves the
+/// parallel search altogether. With one thread that is pure gain; with
+/// more, the in-order pass must not become the bottleneck, so the share
+/// follows the timings: up while the in-order pass finishes first, down
+/// while it is the one waited for. Only the timings depend on the share.
+struct Deferral {
+    share: f64,
+    fixed: bool,
+}
+
+impl Deferral {
+    fn new(fixed: Option<f64>) -> Deferral {
+        match fixed {
+            Some(s) => Deferral {
+                share: s.clamp(0.0, 1.0),
+                fixed: true,
+            },
+            None if rayon::current_num_threads() == 1 => Deferral {
+                share: 1.0,
+                fixed: true,
+            },
+            None => Deferral {
+                share: 0.5,
+                fixed: false,
+            },
+        }
+    }
+
+    /// Adjusts the share after a batch whose in-order pass took
+    /// `in_order` seconds while the search of the next took `search`.
+    fn update(&mut self, in_order: f64, search: f64) {
+        const STEP: f64 = 1.0 / 32.0;
+        if !self.fixed {
+            let step = if in_order < search { STEP } else { -STEP };
+            self.share = (self.share + step).clamp(0.0, 1.0);
+        }
     }
 }
 
@@ -315,7 +385,9 @@ fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
         out.counts.valid += 1;
         let j = batch.pos[i] as usize;
         let hit = &batch.hits[j];
-        let found = if index.len() == batch.base as usize
+        let found = if hit.deferred {
+            index.search(&slot.p, None, goal, kb, scratch)
+        } else if index.len() == batch.base as usize
             || (goal == Goal::Decide && hit.found.verdict.accepted())
         {
             hit.found
@@ -371,8 +443,11 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
     let mut kb = KBest::new(k);
     let mut scratch = I::Scratch::default();
     let range = |start: usize| start..(start + batch).min(n);
+    let mut deferral = Deferral::new(params.deferral);
     if n > 0 {
-        batches[0].search(&records[range(0)], &lagging, header, params, goal);
+        // Nothing is stored yet: the first batch is decided in order
+        // whatever its search finds.
+        batches[0].search(&records[range(0)], &lagging, header, params, goal, 0.0);
     }
     for (b, start) in (0..n).step_by(batch).enumerate() {
         let m = range(start).len();
@@ -390,8 +465,10 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
             stored_at: &mut stored_at,
         };
         let lagging_ref = &lagging;
-        rayon::join(
+        let share = deferral.share;
+        let (in_order, search) = rayon::join(
             || {
+                let t = Instant::now();
                 decide_in_order(
                     cur,
                     start,
@@ -401,15 +478,19 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
                     &mut kb,
                     &mut scratch,
                     &mut out,
-                )
+                );
+                t.elapsed().as_secs_f64()
             },
             || {
+                let t = Instant::now();
                 if start + batch < n {
                     let recs = &records[range(start + batch)];
-                    next.search(recs, lagging_ref, header, params, goal);
+                    next.search(recs, lagging_ref, header, params, goal, share);
                 }
+                t.elapsed().as_secs_f64()
             },
         );
+        deferral.update(in_order, search);
         for id in lagging.len()..index.len() {
             lagging.insert(*index.point(id as u32));
         }
