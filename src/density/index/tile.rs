@@ -129,12 +129,31 @@ impl<const D: usize> Tile<D> {
         // Squared distances are never negative or NaN, so their bits order
         // as they do: an integer comparison.
         let by_d2 = |c: &(f64, u32)| c.0.to_bits();
-        if m > k {
-            pick.select_nth_unstable_by_key(k - 1, by_d2);
+        // The last query's k-th nearest is usually close to this one's:
+        // partitioned around it, at most one side needs a selection, and
+        // often a small one.
+        let last2 = self.tau2 / TAU_MARGIN;
+        let mut a = 0;
+        if m > k && last2 < tau2 {
+            for i in 0..m {
+                let below = pick[i].0 <= last2;
+                pick.swap(i, a);
+                a += below as usize;
+            }
         }
-        let pick = &pick[..m.min(k)];
-        // After the selection the k-th smallest is last.
-        kb.set_unordered(pick, m > k);
+        let largest_last = if m <= k {
+            false
+        } else if a >= k {
+            if a > k {
+                pick[..a].select_nth_unstable_by_key(k - 1, by_d2);
+            }
+            a > k
+        } else {
+            // All below the pivot, then the nearest above it.
+            pick[a..].select_nth_unstable_by_key(k - a - 1, by_d2);
+            true
+        };
+        kb.set_unordered(&pick[..m.min(k)], largest_last);
         if kb.is_full() {
             self.tau2 = kb.worst2() * TAU_MARGIN;
         }
