@@ -155,6 +155,9 @@ const SUB_BLOCK: usize = 256;
 struct Seeds {
     /// The locality key of the sample they were found for.
     key: u32,
+    /// Whether that sample's search failed to accept it (the lagging T
+    /// lacked the points its recheck then supplies).
+    failed: bool,
     ids: Vec<u32>,
     /// Their squared distances to the current query.
     d2: Vec<f64>,
@@ -164,6 +167,7 @@ impl Seeds {
     fn new(k: usize) -> Seeds {
         Seeds {
             key: u32::MAX,
+            failed: false,
             ids: Vec::with_capacity(k),
             d2: Vec::with_capacity(k),
         }
@@ -185,9 +189,10 @@ impl Seeds {
         classify(&self.d2, k) == Sum::BelowK
     }
 
-    fn remember(&mut self, kb: &KBest, key: u32) {
+    fn remember(&mut self, kb: &KBest, key: u32, found: &Found) {
         if kb.is_full() {
             self.key = key;
+            self.failed = !found.verdict.accepted();
             self.ids.clear();
             self.ids.extend_from_slice(kb.ids());
         }
@@ -287,10 +292,11 @@ impl<const D: usize> Batch<D> {
                             hit.found = ACCEPTED;
                             continue;
                         }
-                        // Defer a share of the searches, but search the
-                        // first sample of each cell, whose neighbours seed
-                        // the next samples.
-                        if seeds.key == cell {
+                        // Defer a share of the searches that would likely
+                        // fail like the last one in this cell did (and so
+                        // need a recheck), but search the first sample of
+                        // each cell, whose neighbours seed the next ones.
+                        if seeds.key == cell && seeds.failed {
                             *share += defer;
                             if *share >= 1.0 {
                                 *share -= 1.0;
@@ -299,7 +305,7 @@ impl<const D: usize> Batch<D> {
                             }
                         }
                         hit.found = index.search(p, None, goal, kb, scratch);
-                        seeds.remember(kb, cell);
+                        seeds.remember(kb, cell, &hit.found);
                         hit.klen = kb.as_slice().len();
                         hit.sorted = kb.is_sorted();
                         kd[..hit.klen].copy_from_slice(kb.as_slice());
