@@ -6,7 +6,9 @@
 //! accepted stays accepted, and any other is completed with the points
 //! stored since that state (see [`NeighbourIndex::recheck`]) before it is
 //! decided. The in-order pass over batch b overlaps the search of batch
-//! b + 1, which therefore reads a copy of T one batch behind. The final pass
+//! b + 1, which therefore reads a copy of T one batch behind. Searches
+//! likely to fail against that copy may be left to the in-order pass
+//! ([`Deferral`]), which searches the current T instead. The final pass
 //! searches a fixed T, so it is parallel as is.
 
 use std::time::Instant;
