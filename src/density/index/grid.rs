@@ -270,10 +270,11 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
             for rr in 0..=r {
                 self.for_ring(centre, rr, |_, flat| flats.push(flat));
             }
+            let n = flats.iter().map(|&flat| self.cells[flat].len()).sum();
             let points = flats
                 .into_iter()
                 .flat_map(|flat| self.cells[flat].iter().map(|e| (&e.p, e.id)));
-            tile.fill(key, points);
+            tile.fill(key, n, points);
         }
         // Unless it accepts at once, `judge` below takes the block's bound.
         if tile.nearest(q, exclude, kb, goal == Goal::Decide) == Sum::BelowK {

@@ -51,23 +51,35 @@ impl<const D: usize> Tile<D> {
         self.key == Some(key)
     }
 
-    /// Replaces the contents with `points` (as `(point, id)`) for `key`.
+    /// Replaces the contents with the `n` points of `points` (as
+    /// `(point, id)`) for `key`.
     pub fn fill<'a>(
         &mut self,
         key: (usize, usize),
+        n: usize,
         points: impl Iterator<Item = (&'a [f32; D], u32)>,
     ) {
         self.key = Some(key);
+        // Sized once, then written in place: a refill per cell change is a
+        // large share of a pass-major replay, where a worker meets each
+        // cell for a few samples only.
         for c in self.cols.iter_mut() {
-            c.clear();
+            c.resize(n, 0.0);
         }
-        self.ids.clear();
-        for (p, id) in points {
+        self.ids.resize(n, 0);
+        let mut len = 0;
+        for (i, (p, id)) in points.take(n).enumerate() {
             for (c, &v) in self.cols.iter_mut().zip(p) {
-                c.push(v as f64);
+                c[i] = v as f64;
             }
-            self.ids.push(id);
+            self.ids[i] = id;
+            len = i + 1;
         }
+        debug_assert_eq!(len, n, "fill: fewer points than announced");
+        for c in self.cols.iter_mut() {
+            c.truncate(len);
+        }
+        self.ids.truncate(len);
     }
 
     /// Replaces the contents of `kb` with the k nearest gathered points to
@@ -181,7 +193,7 @@ mod tests {
         let mut next = || (unit() * 4.0) as f32;
         let pts: Vec<[f32; 5]> = (0..300).map(|_| std::array::from_fn(|_| next())).collect();
         let mut tile = Tile::<5>::default();
-        tile.fill((0, 0), pts.iter().zip(0u32..));
+        tile.fill((0, 0), pts.len(), pts.iter().zip(0u32..));
         for (i, k) in [
             (0usize, 1usize),
             (1, 10),
