@@ -149,6 +149,10 @@ struct Hit {
 
 const SUB_BLOCK: usize = 256;
 
+/// Deferred searches in a row before a worker searches again to refresh
+/// its seeds (see [`Deferral`]).
+const REFRESH: u32 = 16;
+
 /// The k nearest stored points of a worker's last full search, tried first
 /// on its next sample: neighbouring samples of a dump mostly share their
 /// neighbours, and k distances are far cheaper than a search. Exact: stored
@@ -160,6 +164,8 @@ struct Seeds {
     /// Whether that sample's search failed to accept it (the lagging T
     /// lacked the points its recheck then supplies).
     failed: bool,
+    /// Searches deferred since they were found.
+    deferred: u32,
     ids: Vec<u32>,
     /// Their squared distances to the current query.
     d2: Vec<f64>,
@@ -170,6 +176,7 @@ impl Seeds {
         Seeds {
             key: u32::MAX,
             failed: false,
+            deferred: 0,
             ids: Vec::with_capacity(k),
             d2: Vec::with_capacity(k),
         }
@@ -195,6 +202,7 @@ impl Seeds {
         if kb.is_full() {
             self.key = key;
             self.failed = !found.verdict.accepted();
+            self.deferred = 0;
             self.ids.clear();
             self.ids.extend_from_slice(kb.ids());
         }
@@ -297,11 +305,13 @@ impl<const D: usize> Batch<D> {
                         // Defer a share of the searches that would likely
                         // fail like the last one in this cell did (and so
                         // need a recheck), but search the first sample of
-                        // each cell, whose neighbours seed the next ones.
-                        if seeds.key == cell && seeds.failed {
+                        // each cell, whose neighbours seed the next ones,
+                        // and now and then refresh the seeds.
+                        if seeds.key == cell && seeds.failed && seeds.deferred < REFRESH {
                             *share += defer;
                             if *share >= 1.0 {
                                 *share -= 1.0;
+                                seeds.deferred += 1;
                                 hit.deferred = true;
                                 continue;
                             }
@@ -538,5 +548,36 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
         counts,
         streaming_seconds,
         final_seconds: t1.elapsed().as_secs_f64(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Deferral;
+
+    /// The adaptive share rises while the in-order pass finishes first,
+    /// falls while the search waits for it, and stays within [0, 1]; a
+    /// fixed share never moves.
+    #[test]
+    fn deferral_share_follows_the_slower_side() {
+        let mut d = Deferral {
+            share: 0.5,
+            fixed: false,
+        };
+        d.update(1.0, 2.0);
+        assert!(d.share > 0.5);
+        for _ in 0..100 {
+            d.update(1.0, 2.0);
+        }
+        assert_eq!(d.share, 1.0);
+        d.update(2.0, 1.0);
+        assert!(d.share < 1.0);
+        for _ in 0..100 {
+            d.update(2.0, 1.0);
+        }
+        assert_eq!(d.share, 0.0);
+        let mut fixed = Deferral::new(Some(0.25));
+        fixed.update(2.0, 1.0);
+        assert_eq!(fixed.share, 0.25);
     }
 }
