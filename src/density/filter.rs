@@ -11,6 +11,7 @@
 //! ([`Deferral`]), which searches the current T instead. The final pass
 //! searches a fixed T, so it is parallel as is.
 
+use std::sync::Mutex;
 use std::time::Instant;
 
 use indicatif::ProgressBar;
@@ -251,6 +252,7 @@ impl<const D: usize> Batch<D> {
 
     /// Parallel: classifies `recs`, maps them to the joint space and searches
     /// `index` as it stands, nearby records together.
+    #[allow(clippy::too_many_arguments)]
     fn search<I: NeighbourIndex<D>>(
         &mut self,
         recs: &[Record],
@@ -259,6 +261,7 @@ impl<const D: usize> Batch<D> {
         params: &FilterParams,
         goal: Goal,
         defer: f64,
+        workers: &[Mutex<Worker<I::Scratch>>],
     ) {
         let k = params.k;
         let m = recs.len();
@@ -289,41 +292,72 @@ impl<const D: usize> Batch<D> {
             .par_chunks_mut(SUB_BLOCK)
             .zip(self.kbuf[..valid * k].par_chunks_mut(SUB_BLOCK * k))
             .zip(self.order.par_chunks(SUB_BLOCK))
-            // One worker state per rayon job rather than per sub-block: the
-            // tile's buffers and cached block carry over between sub-blocks.
-            .for_each_init(
-                || (KBest::new(k), I::Scratch::default(), Seeds::new(k), 0.0),
-                |(kb, scratch, seeds, share), ((hits, kbuf), order)| {
-                    for ((hit, kd), &key) in hits.iter_mut().zip(kbuf.chunks_mut(k)).zip(order) {
-                        let p = &slots[(key & u32::MAX as u64) as usize].p;
-                        let cell = (key >> 32) as u32;
-                        hit.deferred = false;
-                        if goal == Goal::Decide && seeds.accept(index, p, k) {
-                            hit.found = ACCEPTED;
+            .for_each(|((hits, kbuf), order)| {
+                // Each thread keeps its state from job to job and batch
+                // to batch (buffers, the tile's block, the seeds): the
+                // lock is only ever taken by the thread it belongs to.
+                let slot = rayon::current_thread_index().unwrap_or(0) % workers.len();
+                let mut guard = workers[slot].lock().unwrap_or_else(|e| e.into_inner());
+                let Worker {
+                    kb,
+                    scratch,
+                    seeds,
+                    share,
+                } = &mut *guard;
+                for ((hit, kd), &key) in hits.iter_mut().zip(kbuf.chunks_mut(k)).zip(order) {
+                    let p = &slots[(key & u32::MAX as u64) as usize].p;
+                    let cell = (key >> 32) as u32;
+                    hit.deferred = false;
+                    if goal == Goal::Decide && seeds.accept(index, p, k) {
+                        hit.found = ACCEPTED;
+                        continue;
+                    }
+                    // Defer a share of the searches that would likely
+                    // fail like the last one in this cell did (and so
+                    // need a recheck), but search the first sample of
+                    // each cell, whose neighbours seed the next ones,
+                    // and now and then refresh the seeds.
+                    if seeds.key == cell && seeds.failed && seeds.deferred < REFRESH {
+                        *share += defer;
+                        if *share >= 1.0 {
+                            *share -= 1.0;
+                            seeds.deferred += 1;
+                            hit.deferred = true;
                             continue;
                         }
-                        // Defer a share of the searches that would likely
-                        // fail like the last one in this cell did (and so
-                        // need a recheck), but search the first sample of
-                        // each cell, whose neighbours seed the next ones,
-                        // and now and then refresh the seeds.
-                        if seeds.key == cell && seeds.failed && seeds.deferred < REFRESH {
-                            *share += defer;
-                            if *share >= 1.0 {
-                                *share -= 1.0;
-                                seeds.deferred += 1;
-                                hit.deferred = true;
-                                continue;
-                            }
-                        }
-                        hit.found = index.search(p, None, goal, kb, scratch);
-                        seeds.remember(kb, cell, &hit.found);
-                        hit.klen = kb.as_slice().len();
-                        hit.sorted = kb.is_sorted();
-                        kd[..hit.klen].copy_from_slice(kb.as_slice());
                     }
-                },
-            );
+                    hit.found = index.search(p, None, goal, kb, scratch);
+                    seeds.remember(kb, cell, &hit.found);
+                    hit.klen = kb.as_slice().len();
+                    hit.sorted = kb.is_sorted();
+                    kd[..hit.klen].copy_from_slice(kb.as_slice());
+                }
+            });
+    }
+}
+
+/// One thread's working state for the parallel search.
+struct Worker<S> {
+    kb: KBest,
+    scratch: S,
+    seeds: Seeds,
+    /// Accumulated share of deferrable searches (see [`Deferral`]).
+    share: f64,
+}
+
+impl<S: Default> Worker<S> {
+    /// One per thread of the current rayon pool.
+    fn per_thread(k: usize) -> Vec<Mutex<Worker<S>>> {
+        (0..rayon::current_num_threads())
+            .map(|_| {
+                Mutex::new(Worker {
+                    kb: KBest::new(k),
+                    scratch: S::default(),
+                    seeds: Seeds::new(k),
+                    share: 0.0,
+                })
+            })
+            .collect()
     }
 }
 
@@ -462,10 +496,19 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
     let mut scratch = I::Scratch::default();
     let range = |start: usize| start..(start + batch).min(n);
     let mut deferral = Deferral::new(params.deferral);
+    let workers = Worker::<I::Scratch>::per_thread(k);
     if n > 0 {
         // Nothing is stored yet: the first batch is decided in order
         // whatever its search finds.
-        batches[0].search(&records[range(0)], &lagging, header, params, goal, 0.0);
+        batches[0].search(
+            &records[range(0)],
+            &lagging,
+            header,
+            params,
+            goal,
+            0.0,
+            &workers,
+        );
     }
     for (b, start) in (0..n).step_by(batch).enumerate() {
         let m = range(start).len();
@@ -482,7 +525,7 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
             counts: &mut counts,
             stored_at: &mut stored_at,
         };
-        let lagging_ref = &lagging;
+        let (lagging_ref, workers) = (&lagging, &workers);
         let share = deferral.share;
         let (in_order, search) = rayon::join(
             || {
@@ -503,7 +546,7 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
                 let t = Instant::now();
                 if start + batch < n {
                     let recs = &records[range(start + batch)];
-                    next.search(recs, lagging_ref, header, params, goal, share);
+                    next.search(recs, lagging_ref, header, params, goal, share, workers);
                 }
                 t.elapsed().as_secs_f64()
             },
