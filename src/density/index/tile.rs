@@ -22,9 +22,10 @@ pub struct Tile<const D: usize> {
     d2: Vec<f64>,
     /// Candidates below the threshold: (squared distance, id).
     pick: Vec<(f64, u32)>,
-    /// Squared-distance threshold for the next query: a little above the
-    /// last k-th nearest. Only speed depends on it.
-    tau2: f64,
+    /// The last query's k-th nearest squared distance (+∞ before one
+    /// found k): the next query's threshold lies a little above it, and
+    /// its candidates are partitioned around it. Only speed depends on it.
+    last2: f64,
 }
 
 impl<const D: usize> Default for Tile<D> {
@@ -35,7 +36,7 @@ impl<const D: usize> Default for Tile<D> {
             ids: Vec::new(),
             d2: Vec::new(),
             pick: Vec::new(),
-            tau2: f64::INFINITY,
+            last2: f64::INFINITY,
         }
     }
 }
@@ -111,8 +112,9 @@ impl<const D: usize> Tile<D> {
         if self.pick.len() < n + 1 {
             self.pick.resize(n + 1, (0.0, 0));
         }
-        let mut tau2 = if self.tau2 > 0.0 {
-            self.tau2
+        let last2 = self.last2;
+        let mut tau2 = if last2 > 0.0 {
+            last2 * TAU_MARGIN
         } else {
             f64::INFINITY
         };
@@ -144,7 +146,6 @@ impl<const D: usize> Tile<D> {
         // The last query's k-th nearest is usually close to this one's:
         // partitioned around it, at most one side needs a selection, and
         // often a small one.
-        let last2 = self.tau2 / TAU_MARGIN;
         let mut a = 0;
         if m > k && last2 < tau2 {
             for i in 0..m {
@@ -167,7 +168,7 @@ impl<const D: usize> Tile<D> {
         };
         kb.set_unordered(&pick[..m.min(k)], largest_last);
         if kb.is_full() {
-            self.tau2 = kb.worst2() * TAU_MARGIN;
+            self.last2 = kb.worst2();
         }
         if decide_early {
             let verdict = kb.classify();
@@ -217,6 +218,35 @@ mod tests {
             assert_eq!(kb.as_slice(), &all[..], "query {i}, k = {k}");
             for (&d2, &id) in kb.as_slice().iter().zip(kb.ids()) {
                 assert_eq!(d2, dist2(&pts[id as usize], &q));
+            }
+        }
+    }
+
+    /// Queries in a row at one k, each leaving the pivot and threshold for
+    /// the next (the case the partition is built for: the pivot falls below,
+    /// at and above the next query's k-th nearest): the contents always
+    /// equal the k smallest of a plain sort, with the largest last.
+    #[test]
+    fn tile_partition_around_the_last_kth_keeps_the_k_smallest() {
+        let mut unit = crate::synth::test_units(777);
+        let pts: Vec<[f32; 5]> = (0..400)
+            .map(|_| std::array::from_fn(|_| (unit() * 4.0) as f32))
+            .collect();
+        let mut tile = Tile::<5>::default();
+        tile.fill((0, 0), pts.len(), pts.iter().zip(0u32..));
+        for k in [1usize, 10, 50] {
+            let mut kb = KBest::new(k);
+            for _ in 0..200 {
+                let q: [f32; 5] = std::array::from_fn(|_| (unit() * 4.0) as f32);
+                tile.nearest(&q, None, &mut kb, true);
+                let mut got = kb.as_slice().to_vec();
+                let largest = got.iter().cloned().fold(0.0, f64::max);
+                assert_eq!(*got.last().unwrap(), largest, "k = {k}: largest not last");
+                got.sort_by(f64::total_cmp);
+                let mut all: Vec<f64> = pts.iter().map(|p| dist2(p, &q)).collect();
+                all.sort_by(f64::total_cmp);
+                all.truncate(k);
+                assert_eq!(got, all, "k = {k}");
             }
         }
     }
