@@ -6,7 +6,9 @@
 //! accepted stays accepted, and any other is completed with the points
 //! stored since that state (see [`NeighbourIndex::recheck`]) before it is
 //! decided. The in-order pass over batch b overlaps the search of batch
-//! b + 1, which therefore reads a copy of T one batch behind. Searches
+//! b + 1, which therefore reads a copy of T one batch behind, and the
+//! preparation of batch b + 2 (classification, joint-space points and the
+//! sort of its search order, which need no T). Searches
 //! likely to fail against that copy may be left to the in-order pass
 //! ([`Deferral`]), which searches the current T instead. The final pass
 //! searches a fixed T, so it is parallel as is.
@@ -133,6 +135,8 @@ const ACCEPTED: Found = Found {
 #[derive(Clone, Copy)]
 struct Slot<const D: usize> {
     validity: Validity,
+    /// The index's locality key of `p`.
+    key: u32,
     p: [f32; D],
 }
 
@@ -232,6 +236,7 @@ impl<const D: usize> Batch<D> {
     fn new(len: usize, k: usize) -> Batch<D> {
         let slot = Slot {
             validity: Validity::NonFinite,
+            key: 0,
             p: [0.0; D],
         };
         let hit = Hit {
@@ -250,22 +255,17 @@ impl<const D: usize> Batch<D> {
         }
     }
 
-    /// Parallel: classifies `recs`, maps them to the joint space and searches
-    /// `index` as it stands, nearby records together.
-    #[allow(clippy::too_many_arguments)]
-    fn search<I: NeighbourIndex<D>>(
+    /// Classifies `recs`, maps them to the joint space and orders them by
+    /// `index`'s locality key, in parallel but for the sort. Needs no
+    /// stored point, so it runs a batch ahead, beside the in-order pass.
+    fn prepare<I: NeighbourIndex<D>>(
         &mut self,
         recs: &[Record],
         index: &I,
         header: &Header,
-        params: &FilterParams,
-        goal: Goal,
-        defer: f64,
-        workers: &[Mutex<Worker<I::Scratch>>],
+        space: &JointSpace,
     ) {
-        let k = params.k;
         let m = recs.len();
-        self.base = index.len() as u32;
         self.slots[..m]
             .par_chunks_mut(SUB_BLOCK)
             .zip(recs.par_chunks(SUB_BLOCK))
@@ -273,20 +273,36 @@ impl<const D: usize> Batch<D> {
                 for (slot, rec) in slots.iter_mut().zip(recs) {
                     slot.validity = rec.validity(header);
                     if slot.validity == Validity::Valid {
-                        slot.p = params.space.point::<D>(rec);
+                        slot.p = space.point::<D>(rec);
+                        slot.key = index.locality(&slot.p);
                     }
                 }
             });
         self.order.clear();
         self.order.extend(
-            (0..m as u64)
-                .filter(|&i| self.slots[i as usize].validity == Validity::Valid)
-                .map(|i| (index.locality(&self.slots[i as usize].p) as u64) << 32 | i),
+            self.slots[..m]
+                .iter()
+                .zip(0u64..)
+                .filter(|(slot, _)| slot.validity == Validity::Valid)
+                .map(|(slot, i)| (slot.key as u64) << 32 | i),
         );
         self.order.sort_unstable();
         for (j, &key) in self.order.iter().enumerate() {
             self.pos[(key & u32::MAX as u64) as usize] = j as u32;
         }
+    }
+
+    /// Parallel: searches the prepared records against `index` as it
+    /// stands, in locality order.
+    fn search<I: NeighbourIndex<D>>(
+        &mut self,
+        index: &I,
+        k: usize,
+        goal: Goal,
+        defer: f64,
+        workers: &[Mutex<Worker<I::Scratch>>],
+    ) {
+        self.base = index.len() as u32;
         let (slots, valid) = (&self.slots, self.order.len());
         self.hits[..valid]
             .par_chunks_mut(SUB_BLOCK)
@@ -395,7 +411,8 @@ impl Deferral {
     }
 
     /// Adjusts the share after a batch whose in-order pass took
-    /// `in_order` seconds while the search of the next took `search`.
+    /// `in_order` seconds while the search of the next and the preparation
+    /// of the one after took `search`.
     fn update(&mut self, in_order: f64, search: f64) {
         const STEP: f64 = 1.0 / 32.0;
         if !self.fixed {
@@ -487,38 +504,31 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
     let batch = params.batch.max(SUB_BLOCK);
     // Two copies of T: `index` is current; `lagging` trails it by one batch.
     // While one worker decides batch b in order (inserting into `index`),
-    // the others search batch b + 1 against `lagging`; the rechecks then
-    // offer everything stored since, so the lag changes no result.
+    // the others search batch b + 1 against `lagging` and prepare batch
+    // b + 2; the rechecks then offer everything stored since, so the lag
+    // changes no result. The serial steps (the in-order pass, the sort of a
+    // batch's search order) thus overlap parallel work.
     let mut index = make_index();
     let mut lagging = make_index();
-    let mut batches = [Batch::<D>::new(batch, k), Batch::<D>::new(batch, k)];
+    // This batch (decided in order), the next (searched), the one after
+    // (prepared); rotated after each batch.
+    let mut batches: [Batch<D>; 3] = std::array::from_fn(|_| Batch::new(batch, k));
     let mut kb = KBest::new(k);
     let mut scratch = I::Scratch::default();
     let range = |start: usize| start..(start + batch).min(n);
     let mut deferral = Deferral::new(params.deferral);
     let workers = Worker::<I::Scratch>::per_thread(k);
+    for (j, start) in (0..n).step_by(batch).take(2).enumerate() {
+        batches[j].prepare(&records[range(start)], &lagging, header, &params.space);
+    }
     if n > 0 {
         // Nothing is stored yet: the first batch is decided in order
         // whatever its search finds.
-        batches[0].search(
-            &records[range(0)],
-            &lagging,
-            header,
-            params,
-            goal,
-            0.0,
-            &workers,
-        );
+        batches[0].search(&lagging, k, goal, 0.0, &workers);
     }
-    for (b, start) in (0..n).step_by(batch).enumerate() {
+    for start in (0..n).step_by(batch) {
         let m = range(start).len();
-        let (cur, next) = if b % 2 == 0 {
-            let [a, b] = &mut batches;
-            (a, b)
-        } else {
-            let [a, b] = &mut batches;
-            (b, a)
-        };
+        let [cur, next, after] = &mut batches;
         let mut out = Streaming {
             decisions: &mut decisions,
             sigma: sigma.as_deref_mut(),
@@ -543,11 +553,23 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
                 t.elapsed().as_secs_f64()
             },
             || {
+                // The preparation waits first in line to be stolen: by the
+                // in-order worker when it finishes first, else by this one
+                // after the search.
                 let t = Instant::now();
-                if start + batch < n {
-                    let recs = &records[range(start + batch)];
-                    next.search(recs, lagging_ref, header, params, goal, share, workers);
-                }
+                rayon::join(
+                    || {
+                        if start + batch < n {
+                            next.search(lagging_ref, k, goal, share, workers);
+                        }
+                    },
+                    || {
+                        if start + 2 * batch < n {
+                            let recs = &records[range(start + 2 * batch)];
+                            after.prepare(recs, lagging_ref, header, &params.space);
+                        }
+                    },
+                );
                 t.elapsed().as_secs_f64()
             },
         );
@@ -555,6 +577,7 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
         for id in lagging.len()..index.len() {
             lagging.insert(*index.point(id as u32));
         }
+        batches.rotate_left(1);
         progress.inc(m as u64);
     }
     drop(lagging);
