@@ -362,17 +362,19 @@ struct Worker<S> {
 }
 
 impl<S: Default> Worker<S> {
+    fn new(k: usize) -> Worker<S> {
+        Worker {
+            kb: KBest::new(k),
+            scratch: S::default(),
+            seeds: Seeds::new(k),
+            share: 0.0,
+        }
+    }
+
     /// One per thread of the current rayon pool.
     fn per_thread(k: usize) -> Vec<Mutex<Worker<S>>> {
         (0..rayon::current_num_threads())
-            .map(|_| {
-                Mutex::new(Worker {
-                    kb: KBest::new(k),
-                    scratch: S::default(),
-                    seeds: Seeds::new(k),
-                    share: 0.0,
-                })
-            })
+            .map(|_| Mutex::new(Worker::new(k)))
             .collect()
     }
 }
@@ -433,6 +435,8 @@ struct Streaming<'a> {
 
 /// Sequential, in file order: completes each search of `batch` (records from
 /// `start`) with the points stored since it ran, then decides and stores.
+/// Before a search or a recheck it tries the k nearest of its last search,
+/// as the parallel workers do: consecutive samples mostly share neighbours.
 #[allow(clippy::too_many_arguments)]
 fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
     batch: &Batch<D>,
@@ -440,10 +444,12 @@ fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
     m: usize,
     index: &mut I,
     goal: Goal,
-    kb: &mut KBest,
-    scratch: &mut I::Scratch,
+    worker: &mut Worker<I::Scratch>,
     out: &mut Streaming,
 ) {
+    let Worker {
+        kb, scratch, seeds, ..
+    } = worker;
     let k = kb.k();
     for (i, slot) in batch.slots[..m].iter().enumerate() {
         let rec = start + i;
@@ -454,12 +460,17 @@ fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
         out.counts.valid += 1;
         let j = batch.pos[i] as usize;
         let hit = &batch.hits[j];
-        let found = if hit.deferred {
-            index.search(&slot.p, None, goal, kb, scratch)
-        } else if index.len() == batch.base as usize
-            || (goal == Goal::Decide && hit.found.verdict.accepted())
+        let found = if !hit.deferred
+            && (index.len() == batch.base as usize
+                || (goal == Goal::Decide && hit.found.verdict.accepted()))
         {
             hit.found
+        } else if goal == Goal::Decide && seeds.accept(&*index, &slot.p, k) {
+            ACCEPTED
+        } else if hit.deferred {
+            let found = index.search(&slot.p, None, goal, kb, scratch);
+            seeds.remember(kb, slot.key, &found);
+            found
         } else {
             kb.load(&batch.kbuf[j * k..j * k + hit.klen], hit.sorted);
             index.recheck(&slot.p, batch.base, hit.found, goal, kb, scratch)
@@ -513,8 +524,7 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
     // This batch (decided in order), the next (searched), the one after
     // (prepared); rotated after each batch.
     let mut batches: [Batch<D>; 3] = std::array::from_fn(|_| Batch::new(batch, k));
-    let mut kb = KBest::new(k);
-    let mut scratch = I::Scratch::default();
+    let mut in_order_worker = Worker::new(k);
     let range = |start: usize| start..(start + batch).min(n);
     let mut deferral = Deferral::new(params.deferral);
     let workers = Worker::<I::Scratch>::per_thread(k);
@@ -546,8 +556,7 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
                     m,
                     &mut index,
                     goal,
-                    &mut kb,
-                    &mut scratch,
+                    &mut in_order_worker,
                     &mut out,
                 );
                 t.elapsed().as_secs_f64()
