@@ -13,19 +13,13 @@
 //! along one axis; rounding is monotone, so its computed distance is at least
 //! `sqrt(g * g)` computed the same way. That is the search's `bound`.
 
-use super::tile::Tile;
+use super::tile::{Entry, Tile};
 use super::{Found, NeighbourIndex, offer_suffix};
 use crate::density::sigma::{Goal, KBest, Sum, Verdict, judge};
 use crate::joint::dist2;
 
 /// Upper limit on the number of cells; the cell side doubles until it fits.
 const MAX_CELLS: usize = 1 << 22;
-
-#[derive(Clone, Copy)]
-struct Entry<const D: usize> {
-    p: [f32; D],
-    id: u32,
-}
 
 pub struct Grid<const D: usize> {
     /// Number of gridded axes: x, y, and t for an animation (D = 6).
@@ -266,15 +260,16 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
         let mut r = self.tile_radius;
         let key = (self.flat(centre), self.arena.len());
         if !tile.holds(key) {
-            let mut flats = Vec::with_capacity(125);
+            // At most 5 × 5 cells for stills, 3 × 3 × 3 for animations.
+            let mut block: [&[Entry<D>]; 27] = [&[]; 27];
+            let mut len = 0;
             for rr in 0..=r {
-                self.for_ring(centre, rr, |_, flat| flats.push(flat));
+                self.for_ring(centre, rr, |_, flat| {
+                    block[len] = &self.cells[flat];
+                    len += 1;
+                });
             }
-            let n = flats.iter().map(|&flat| self.cells[flat].len()).sum();
-            let points = flats
-                .into_iter()
-                .flat_map(|flat| self.cells[flat].iter().map(|e| (&e.p, e.id)));
-            tile.fill(key, n, points);
+            tile.fill(key, &block[..len]);
         }
         // Unless it accepts at once, `judge` below takes the block's bound.
         if tile.nearest(q, exclude, kb, goal == Goal::Decide) == Sum::BelowK {

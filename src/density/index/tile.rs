@@ -12,6 +12,13 @@
 
 use crate::density::sigma::{KBest, Sum};
 
+/// A stored point and its id, as a grid cell lists them.
+#[derive(Clone, Copy)]
+pub struct Entry<const D: usize> {
+    pub p: [f32; D],
+    pub id: u32,
+}
+
 /// Per-worker cache of one block of cells; see the module doc.
 pub struct Tile<const D: usize> {
     /// (cell, |T|) the block was gathered for; `None` before the first.
@@ -52,35 +59,25 @@ impl<const D: usize> Tile<D> {
         self.key == Some(key)
     }
 
-    /// Replaces the contents with the `n` points of `points` (as
-    /// `(point, id)`) for `key`.
-    pub fn fill<'a>(
-        &mut self,
-        key: (usize, usize),
-        n: usize,
-        points: impl Iterator<Item = (&'a [f32; D], u32)>,
-    ) {
+    /// Replaces the contents with the points of `cells` for `key`.
+    pub fn fill(&mut self, key: (usize, usize), cells: &[&[Entry<D>]]) {
         self.key = Some(key);
-        // Sized once, then written in place: a refill per cell change is a
-        // large share of a pass-major replay, where a worker meets each
-        // cell for a few samples only.
+        let n = cells.iter().map(|c| c.len()).sum();
+        // Sized once, then written in place, a cell at a time, column by
+        // column: a refill per cell change is a large share of a
+        // pass-major replay, where a worker meets each cell for a few
+        // samples only.
         for c in self.cols.iter_mut() {
             c.resize(n, 0.0);
         }
         self.ids.resize(n, 0);
-        let mut len = 0;
-        for (i, (p, id)) in points.take(n).enumerate() {
-            for (c, &v) in self.cols.iter_mut().zip(p) {
+        let points = cells.iter().flat_map(|c| c.iter());
+        for (i, e) in points.enumerate() {
+            for (c, &v) in self.cols.iter_mut().zip(&e.p) {
                 c[i] = v as f64;
             }
-            self.ids[i] = id;
-            len = i + 1;
+            self.ids[i] = e.id;
         }
-        debug_assert_eq!(len, n, "fill: fewer points than announced");
-        for c in self.cols.iter_mut() {
-            c.truncate(len);
-        }
-        self.ids.truncate(len);
     }
 
     /// Replaces the contents of `kb` with the k nearest gathered points to
@@ -194,7 +191,12 @@ mod tests {
         let mut next = || (unit() * 4.0) as f32;
         let pts: Vec<[f32; 5]> = (0..300).map(|_| std::array::from_fn(|_| next())).collect();
         let mut tile = Tile::<5>::default();
-        tile.fill((0, 0), pts.len(), pts.iter().zip(0u32..));
+        let entries: Vec<Entry<5>> = pts
+            .iter()
+            .zip(0u32..)
+            .map(|(&p, id)| Entry { p, id })
+            .collect();
+        tile.fill((0, 0), &[&entries[..]]);
         for (i, k) in [
             (0usize, 1usize),
             (1, 10),
@@ -233,7 +235,12 @@ mod tests {
             .map(|_| std::array::from_fn(|_| (unit() * 4.0) as f32))
             .collect();
         let mut tile = Tile::<5>::default();
-        tile.fill((0, 0), pts.len(), pts.iter().zip(0u32..));
+        let entries: Vec<Entry<5>> = pts
+            .iter()
+            .zip(0u32..)
+            .map(|(&p, id)| Entry { p, id })
+            .collect();
+        tile.fill((0, 0), &[&entries[..]]);
         for k in [1usize, 10, 50] {
             let mut kb = KBest::new(k);
             for _ in 0..200 {
