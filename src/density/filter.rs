@@ -174,6 +174,37 @@ struct Seeds {
     ids: Vec<u32>,
     /// Their squared distances to the current query.
     d2: Vec<f64>,
+    /// The seeds last found in each cell, so that a worker coming back to a
+    /// cell starts from them rather than from the previous cell's.
+    cache: SeedCache,
+}
+
+/// Seeds by locality key, direct-mapped: a pass-major dump brings a worker
+/// back to each cell once per pass, a batch holding only a few samples of
+/// it, and a neighbouring cell's seeds rarely prove anything there.
+struct SeedCache {
+    k: usize,
+    /// The key each slot holds (`u32::MAX`: none).
+    keys: Vec<u32>,
+    /// k ids per slot.
+    ids: Vec<u32>,
+}
+
+impl SeedCache {
+    /// At most 16384 slots and about 2^20 ids (4 MB) per worker.
+    fn new(k: usize) -> SeedCache {
+        let slots = ((1usize << 20) / k).clamp(1, 1 << 14);
+        let slots = 1usize << slots.ilog2();
+        SeedCache {
+            k,
+            keys: vec![u32::MAX; slots],
+            ids: vec![0; slots * k],
+        }
+    }
+
+    fn slot(&self, key: u32) -> usize {
+        key as usize & (self.keys.len() - 1)
+    }
 }
 
 impl Seeds {
@@ -184,7 +215,30 @@ impl Seeds {
             deferred: 0,
             ids: Vec::with_capacity(k),
             d2: Vec::with_capacity(k),
+            cache: SeedCache::new(k),
         }
+    }
+
+    /// Before a sample of cell `key`: on a change of cell, files the seeds
+    /// away and takes the cell's own, if it has any (else keeps the
+    /// neighbouring cell's, which may still serve, now as this cell's).
+    fn visit(&mut self, key: u32) {
+        let k = self.cache.k;
+        if key == self.key || self.ids.len() != k {
+            return;
+        }
+        let c = &mut self.cache;
+        let s = c.slot(self.key);
+        c.keys[s] = self.key;
+        c.ids[s * k..(s + 1) * k].copy_from_slice(&self.ids);
+        let s = c.slot(key);
+        if c.keys[s] == key {
+            self.ids.copy_from_slice(&c.ids[s * k..(s + 1) * k]);
+        }
+        // Not failed: a deferral waits for a failure against this batch's T.
+        self.key = key;
+        self.failed = false;
+        self.deferred = 0;
     }
 
     /// True when the seeds prove `q` accepted.
@@ -324,6 +378,7 @@ impl<const D: usize> Batch<D> {
                     let p = &slots[(key & u32::MAX as u64) as usize].p;
                     let cell = (key >> 32) as u32;
                     hit.deferred = false;
+                    seeds.visit(cell);
                     if goal == Goal::Decide && seeds.accept(index, p, k) {
                         hit.found = ACCEPTED;
                         continue;
@@ -460,6 +515,7 @@ fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
         out.counts.valid += 1;
         let j = batch.pos[i] as usize;
         let hit = &batch.hits[j];
+        seeds.visit(slot.key);
         let found = if !hit.deferred
             && (index.len() == batch.base as usize
                 || (goal == Goal::Decide && hit.found.verdict.accepted()))
@@ -628,7 +684,32 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
 
 #[cfg(test)]
 mod tests {
-    use super::Deferral;
+    use super::{Deferral, Seeds};
+
+    /// A worker coming back to a cell gets that cell's seeds back, not the
+    /// last cell's; a cell without any keeps the neighbour's; a return
+    /// clears the failure (it was against an older T).
+    #[test]
+    fn seeds_follow_the_worker_back_to_each_cell() {
+        let mut s = Seeds::new(2);
+        // As `remember` leaves them after a failed search in cell 7.
+        s.key = 7;
+        s.ids.extend([1, 2]);
+        s.failed = true;
+        s.visit(8);
+        assert_eq!((s.key, &s.ids[..], s.failed), (8, &[1, 2][..], false));
+        s.ids.copy_from_slice(&[3, 4]);
+        s.visit(7);
+        assert_eq!(&s.ids[..], &[1, 2]);
+        s.visit(8);
+        assert_eq!(&s.ids[..], &[3, 4]);
+        // A key mapping to 7's slot evicts it.
+        let alias = 7 + s.cache.keys.len() as u32;
+        s.visit(alias);
+        s.ids.copy_from_slice(&[5, 6]);
+        s.visit(7);
+        assert_eq!(&s.ids[..], &[5, 6], "evicted: the last seeds stay");
+    }
 
     /// The adaptive share rises while the in-order pass finishes first,
     /// falls while the search waits for it, and stays within [0, 1]; a
