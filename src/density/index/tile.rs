@@ -93,6 +93,36 @@ impl<const D: usize> Tile<D> {
         kb: &mut KBest,
         decide_early: bool,
     ) -> Sum {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2 (checked just above).
+            return unsafe { self.nearest_avx2(q, exclude, kb, decide_early) };
+        }
+        self.nearest_portable(q, exclude, kb, decide_early)
+    }
+
+    /// [`Tile::nearest`] compiled for AVX2: the same code and the same
+    /// arithmetic (no fused multiply-add), in wider vectors.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn nearest_avx2(
+        &mut self,
+        q: &[f32; D],
+        exclude: Option<u32>,
+        kb: &mut KBest,
+        decide_early: bool,
+    ) -> Sum {
+        self.nearest_portable(q, exclude, kb, decide_early)
+    }
+
+    #[inline(always)]
+    fn nearest_portable(
+        &mut self,
+        q: &[f32; D],
+        exclude: Option<u32>,
+        kb: &mut KBest,
+        decide_early: bool,
+    ) -> Sum {
         let n = self.ids.len();
         let k = kb.k();
         self.d2.clear();
@@ -149,6 +179,15 @@ impl<const D: usize> Tile<D> {
                 let below = pick[i].0 <= last2;
                 pick.swap(i, a);
                 a += below as usize;
+            }
+        }
+        // Any k points whose distances sum below k prove σ < 1 (the k
+        // nearest can only sum lower): the first k after the partition,
+        // mostly within the last k-th, often do, without a selection.
+        if decide_early && m > k {
+            kb.set_unordered(&pick[..k], false);
+            if kb.classify() == Sum::BelowK {
+                return Sum::BelowK;
             }
         }
         let largest_last = if m <= k {
@@ -241,11 +280,23 @@ mod tests {
             .map(|(&p, id)| Entry { p, id })
             .collect();
         tile.fill((0, 0), &[&entries[..]]);
+        let mut selected = 0;
         for k in [1usize, 10, 50] {
             let mut kb = KBest::new(k);
             for _ in 0..200 {
                 let q: [f32; 5] = std::array::from_fn(|_| (unit() * 4.0) as f32);
-                tile.nearest(&q, None, &mut kb, true);
+                if tile.nearest(&q, None, &mut kb, true) == Sum::BelowK {
+                    // Accepted: the contents need only prove it.
+                    assert_eq!(
+                        crate::density::sigma::classify(kb.as_slice(), k),
+                        Sum::BelowK
+                    );
+                    for (&d2, &id) in kb.as_slice().iter().zip(kb.ids()) {
+                        assert_eq!(d2, dist2(&pts[id as usize], &q));
+                    }
+                    continue;
+                }
+                selected += 1;
                 let mut got = kb.as_slice().to_vec();
                 let largest = got.iter().cloned().fold(0.0, f64::max);
                 assert_eq!(*got.last().unwrap(), largest, "k = {k}: largest not last");
@@ -256,5 +307,45 @@ mod tests {
                 assert_eq!(got, all, "k = {k}");
             }
         }
+        assert!(
+            selected >= 300,
+            "only {selected} of 600 queries reached the selection"
+        );
+    }
+
+    /// Any k points within the threshold that prove σ < 1 settle a query
+    /// without a selection, and only then: a query is accepted exactly
+    /// when the k nearest prove it (near and far queries mixed).
+    #[test]
+    fn tile_accepts_on_any_k_that_prove_it() {
+        let mut unit = crate::synth::test_units(4242);
+        let pts: Vec<[f32; 5]> = (0..400)
+            .map(|_| std::array::from_fn(|_| (unit() * 0.8) as f32))
+            .collect();
+        let entries: Vec<Entry<5>> = pts
+            .iter()
+            .zip(0u32..)
+            .map(|(&p, id)| Entry { p, id })
+            .collect();
+        let mut tile = Tile::<5>::default();
+        tile.fill((0, 0), &[&entries[..]]);
+        let k = 10;
+        let mut kb = KBest::new(k);
+        let (mut near, mut far) = (0, 0);
+        for _ in 0..300 {
+            let q: [f32; 5] = std::array::from_fn(|_| (unit() * 3.0 - 1.1) as f32);
+            let got = tile.nearest(&q, None, &mut kb, true);
+            let mut all: Vec<f64> = pts.iter().map(|p| dist2(p, &q)).collect();
+            all.sort_by(f64::total_cmp);
+            let sigma = crate::density::sigma::sigma(&all[..k], k);
+            if got == Sum::BelowK {
+                assert!(sigma < 1.0, "accepted with σ = {sigma}");
+                near += 1;
+            } else {
+                assert!(sigma >= 0.99, "not accepted with σ = {sigma}");
+                far += 1;
+            }
+        }
+        assert!(near > 30 && far > 30, "{near} near, {far} far");
     }
 }
