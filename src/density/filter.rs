@@ -13,7 +13,9 @@
 //! ([`Deferral`]), which searches the current T instead. The final pass
 //! searches a fixed T, so it is parallel as is.
 
-use std::sync::Mutex;
+use std::sync::atomic::AtomicU32;
+use std::sync::atomic::Ordering::Relaxed;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use indicatif::ProgressBar;
@@ -178,9 +180,11 @@ struct Seeds {
     ids: Vec<u32>,
     /// Their squared distances to the current query.
     d2: Vec<f64>,
-    /// The seeds last found in each cell, so that a worker coming back to a
-    /// cell starts from them rather than from the previous cell's.
-    cache: SeedCache,
+    /// The seeds last found under each key, so that a worker coming back
+    /// to a pixel or cell starts from them rather than from the last one's.
+    /// The parallel workers share one (the lagging T's ids); the in-order
+    /// pass has its own (ids of the current T, not all in the lagging one).
+    cache: Arc<SeedCache>,
 }
 
 /// What seeds are cached by: the pixel when the cache can hold every
@@ -213,31 +217,52 @@ impl SeedKeys {
     }
 }
 
-/// Seeds by key ([`SeedKeys`]), direct-mapped.
+/// Seeds by key ([`SeedKeys`]), direct-mapped, shared by threads. Slots
+/// are read and written without locks: a slot read while another thread
+/// writes it may mix two searches' ids, which is harmless, since any ids
+/// of stored points are valid seeds (exactness never rests on them).
 struct SeedCache {
     k: usize,
     /// The key each slot holds (`u32::MAX`: none).
-    keys: Vec<u32>,
-    /// k ids per slot (allocated zeroed: pages are touched only as used).
-    ids: Vec<u32>,
+    keys: Vec<AtomicU32>,
+    /// k ids per slot.
+    ids: Vec<AtomicU32>,
 }
 
 impl SeedCache {
     fn new(k: usize, slots: usize) -> SeedCache {
         SeedCache {
             k,
-            keys: vec![u32::MAX; slots],
-            ids: vec![0; slots * k],
+            keys: (0..slots).map(|_| AtomicU32::new(u32::MAX)).collect(),
+            ids: (0..slots * k).map(|_| AtomicU32::new(0)).collect(),
         }
     }
 
     fn slot(&self, key: u32) -> usize {
         key as usize % self.keys.len()
     }
+
+    fn store(&self, key: u32, ids: &[u32]) {
+        let s = self.slot(key);
+        for (a, &id) in self.ids[s * self.k..(s + 1) * self.k].iter().zip(ids) {
+            a.store(id, Relaxed);
+        }
+        self.keys[s].store(key, Relaxed);
+    }
+
+    /// Copies the seeds of `key` into `ids`, if the cache has them.
+    fn load(&self, key: u32, ids: &mut [u32]) {
+        let s = self.slot(key);
+        if self.keys[s].load(Relaxed) == key {
+            for (id, a) in ids.iter_mut().zip(&self.ids[s * self.k..(s + 1) * self.k]) {
+                *id = a.load(Relaxed);
+            }
+        }
+    }
 }
 
 impl Seeds {
-    fn new(k: usize, slots: usize) -> Seeds {
+    fn new(k: usize, cache: Arc<SeedCache>) -> Seeds {
         Seeds {
             key: u32::MAX,
             failed: false,
@@ -245,7 +270,7 @@ impl Seeds {
             seed_key: u32::MAX,
             ids: Vec::with_capacity(k),
             d2: Vec::with_capacity(k),
-            cache: SeedCache::new(k, slots),
+            cache,
         }
     }
 
@@ -259,16 +284,10 @@ impl Seeds {
         if seed_key == self.seed_key || self.ids.len() != k {
             return;
         }
-        let c = &mut self.cache;
         if self.seed_key != u32::MAX {
-            let s = c.slot(self.seed_key);
-            c.keys[s] = self.seed_key;
-            c.ids[s * k..(s + 1) * k].copy_from_slice(&self.ids);
+            self.cache.store(self.seed_key, &self.ids);
         }
-        let s = c.slot(seed_key);
-        if c.keys[s] == seed_key {
-            self.ids.copy_from_slice(&c.ids[s * k..(s + 1) * k]);
-        }
+        self.cache.load(seed_key, &mut self.ids);
         self.seed_key = seed_key;
         if key != self.key {
             self.key = key;
@@ -462,19 +481,20 @@ struct Worker<S> {
 }
 
 impl<S: Default> Worker<S> {
-    fn new(k: usize, slots: usize) -> Worker<S> {
+    fn new(k: usize, cache: Arc<SeedCache>) -> Worker<S> {
         Worker {
             kb: KBest::new(k),
             scratch: S::default(),
-            seeds: Seeds::new(k, slots),
+            seeds: Seeds::new(k, cache),
             share: 0.0,
         }
     }
 
-    /// One per thread of the current rayon pool.
+    /// One per thread of the current rayon pool, sharing one seed cache.
     fn per_thread(k: usize, slots: usize) -> Vec<Mutex<Worker<S>>> {
+        let cache = Arc::new(SeedCache::new(k, slots));
         (0..rayon::current_num_threads())
-            .map(|_| Mutex::new(Worker::new(k, slots)))
+            .map(|_| Mutex::new(Worker::new(k, cache.clone())))
             .collect()
     }
 }
@@ -626,7 +646,7 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
     // (prepared); rotated after each batch.
     let mut batches: [Batch<D>; 3] = std::array::from_fn(|_| Batch::new(batch, k));
     let seed_keys = SeedKeys::new(header, k);
-    let mut in_order_worker = Worker::new(k, seed_keys.slots);
+    let mut in_order_worker = Worker::new(k, Arc::new(SeedCache::new(k, seed_keys.slots)));
     let range = |start: usize| start..(start + batch).min(n);
     let mut deferral = Deferral::new(params.deferral);
     let workers = Worker::<I::Scratch>::per_thread(k, seed_keys.slots);
@@ -736,7 +756,8 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
 
 #[cfg(test)]
 mod tests {
-    use super::{Deferral, SeedKeys, Seeds};
+    use super::{Deferral, SeedCache, SeedKeys, Seeds};
+    use std::sync::Arc;
 
     /// A worker coming back to a key gets that key's seeds back, not the
     /// last key's; a key without any keeps the last; a new cell clears
@@ -744,7 +765,7 @@ mod tests {
     /// cell does not.
     #[test]
     fn seeds_follow_the_worker_back_to_each_key() {
-        let mut s = Seeds::new(2, 16);
+        let mut s = Seeds::new(2, Arc::new(SeedCache::new(2, 16)));
         // As `remember` leaves them after a failed search in cell 7.
         s.key = 7;
         s.seed_key = 7;
