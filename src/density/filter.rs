@@ -220,7 +220,9 @@ impl SeedKeys {
 /// Seeds by key ([`SeedKeys`]), direct-mapped, shared by threads. Slots
 /// are read and written without locks: a slot read while another thread
 /// writes it may mix two searches' ids, which is harmless, since any ids
-/// of stored points are valid seeds (exactness never rests on them).
+/// of stored points are valid seeds (exactness never rests on them). With
+/// relaxed ordering a reader may even see a key before its ids: it then
+/// reads the initial zeros, id 0, which exists once anything is cached.
 struct SeedCache {
     k: usize,
     /// The key each slot holds (`u32::MAX`: none).
