@@ -347,20 +347,35 @@ fn pixel_centre_dumps_filter_identically_on_every_index() {
     }
 }
 
-/// Neither the thread count, the batch size nor the share of searches the
-/// in-order pass takes over (none, all, or adapted to the timings) changes
-/// a bit of the result: the parallel path (search the lagging T, recheck
-/// in order) and the in-order one (search the current T) are both exact.
-#[test]
-fn results_do_not_depend_on_the_thread_count_batch_size_or_deferral() {
-    let p = SynthParams {
+/// A small pass-major dump with 2% fireflies: every parallel path (lagging
+/// T, rechecks, deferrals, seed caches) is exercised within a few batches.
+fn small_pass_major() -> SynthParams {
+    SynthParams {
         width: 40,
         height: 30,
         spp: 16,
         order: Order::PassMajor,
         firefly_fraction: 0.02,
         ..SynthParams::default()
-    };
+    }
+}
+
+/// Runs `f` on a rayon pool of `threads` threads.
+fn on_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(f)
+}
+
+/// Neither the thread count, the batch size nor the share of searches the
+/// in-order pass takes over (none, all, or adapted to the timings) changes
+/// a bit of the result: the parallel path (search the lagging T, recheck
+/// in order) and the in-order one (search the current T) are both exact.
+#[test]
+fn results_do_not_depend_on_the_thread_count_batch_size_or_deferral() {
+    let p = small_pass_major();
     let h = p.header();
     let recs: Vec<Record> = p.records().collect();
     for exact in [true, false] {
@@ -368,14 +383,10 @@ fn results_do_not_depend_on_the_thread_count_batch_size_or_deferral() {
         for threads in [1, 2, 8] {
             for batch in [256, 5000] {
                 for deferral in [None, Some(0.0), Some(0.5), Some(1.0)] {
-                    let pool = rayon::ThreadPoolBuilder::new()
-                        .num_threads(threads)
-                        .build()
-                        .unwrap();
                     let mut prm = params(10, JointSpace::default(), IndexKind::Grid, exact);
                     prm.batch = batch;
                     prm.deferral = deferral;
-                    let r = pool.install(|| run(&recs, &h, &prm));
+                    let r = on_threads(threads, || run(&recs, &h, &prm));
                     let bits: Option<Vec<u64>> =
                         r.sigma.map(|s| s.iter().map(|s| s.to_bits()).collect());
                     let got = (r.decisions, bits, r.counts);
@@ -397,14 +408,7 @@ fn results_do_not_depend_on_the_thread_count_batch_size_or_deferral() {
 /// way, on any thread count. The large film holds them in its corner.
 #[test]
 fn decisions_do_not_depend_on_how_seeds_are_cached() {
-    let p = SynthParams {
-        width: 40,
-        height: 30,
-        spp: 16,
-        order: Order::PassMajor,
-        firefly_fraction: 0.02,
-        ..SynthParams::default()
-    };
+    let p = small_pass_major();
     let small = p.header();
     let mut large = small.clone();
     (large.width, large.height) = (4096, 1024);
@@ -413,11 +417,7 @@ fn decisions_do_not_depend_on_how_seeds_are_cached() {
     let mut base = None;
     for h in [&small, &large] {
         for threads in [1, 2, 8] {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            let r = pool.install(|| run(&recs, h, &prm));
+            let r = on_threads(threads, || run(&recs, h, &prm));
             let got = (r.decisions, r.counts);
             match &base {
                 None => base = Some(got),

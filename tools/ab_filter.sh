@@ -1,18 +1,24 @@
 #!/usr/bin/env bash
-# Same-period A/B of two pathdensity builds: runs `filter --no-html` with
-# each binary in turn (interleaved, so machine drift hits both alike) and
-# prints the median replay time (streaming + final pass, from report.json).
+# Same-period A/B of two pathdensity runs: `filter --no-html` with each
+# side in turn (interleaved, so machine drift hits both alike); prints the
+# median replay time (streaming + final pass, from report.json) and the
+# ratio old/new.
 #
 #   tools/ab_filter.sh OLD_BIN NEW_BIN DUMP K THREADS RUNS
+#
+# THREADS is one count for both sides, or OLD,NEW: the same binary twice
+# with THREADS 1,2 gives its 1 → 2 thread scaling.
 set -euo pipefail
-[ $# -eq 6 ] || { echo "usage: $0 OLD_BIN NEW_BIN DUMP K THREADS RUNS" >&2; exit 2; }
+[ $# -eq 6 ] || { echo "usage: $0 OLD_BIN NEW_BIN DUMP K THREADS|OLD,NEW RUNS" >&2; exit 2; }
 old=$1 new=$2 dump=$3 k=$4 threads=$5 runs=$6
+t_old=${threads%,*} t_new=${threads#*,}
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 for _ in $(seq "$runs"); do
   for side in old new; do
-    bin=$old; [ "$side" = new ] && bin=$new
-    "$bin" filter "$dump" -o "$out/$side" --k "$k" --threads "$threads" --no-html >/dev/null
+    bin=$old t=$t_old
+    [ "$side" = new ] && bin=$new t=$t_new
+    "$bin" filter "$dump" -o "$out/$side" --k "$k" --threads "$t" --no-html >/dev/null
     python3 -c "import json,sys; t=json.load(open(sys.argv[1]))['timing']; print(sys.argv[2], t['streaming_seconds'] + t['final_pass_seconds'])" "$out/$side/report.json" "$side"
   done
 done | python3 -c "
