@@ -14,8 +14,10 @@ old=$1 new=$2 dump=$3 k=$4 threads=$5 runs=$6
 t_old=${threads%,*} t_new=${threads#*,}
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
-for _ in $(seq "$runs"); do
-  for side in old new; do
+for i in $(seq "$runs"); do
+  # Alternate which side goes first, so neither always follows the other.
+  order="old new"; [ $((i % 2)) -eq 0 ] && order="new old"
+  for side in $order; do
     bin=$old t=$t_old
     [ "$side" = new ] && bin=$new t=$t_new
     "$bin" filter "$dump" -o "$out/$side" --k "$k" --threads "$t" --no-html >/dev/null
