@@ -328,8 +328,9 @@ impl Seeds {
 
 /// One batch's records after the parallel search.
 struct Batch<const D: usize> {
-    /// In file order.
+    /// In file order; the first `len` are prepared.
     slots: Vec<Slot<D>>,
+    len: usize,
     /// (locality key << 32 | position in the batch), sorted: the order the
     /// records are searched in, so that neighbours share a worker's caches
     /// whatever the order of the dump.
@@ -360,6 +361,7 @@ impl<const D: usize> Batch<D> {
         };
         Batch {
             slots: vec![slot; len],
+            len: 0,
             order: Vec::with_capacity(len),
             hits: vec![hit; len],
             kbuf: vec![0.0; len * k],
@@ -368,9 +370,9 @@ impl<const D: usize> Batch<D> {
         }
     }
 
-    /// Classifies `recs`, maps them to the joint space and orders them by
-    /// `index`'s locality key, in parallel but for the sort. Needs no
-    /// stored point, so it runs a batch ahead, beside the in-order pass.
+    /// Classifies `recs`, maps them to the joint space and computes
+    /// `index`'s locality key of each, in parallel. Needs no stored point,
+    /// so it runs a batch ahead, beside the in-order pass.
     fn prepare<I: NeighbourIndex<D>>(
         &mut self,
         recs: &[Record],
@@ -398,9 +400,16 @@ impl<const D: usize> Batch<D> {
                     }
                 }
             });
+        self.len = m;
+    }
+
+    /// Serial: sorts the prepared records by locality key, the order they
+    /// are searched in. Done at the start of the search rather than at the
+    /// end of the preparation, so that no thread waits on it.
+    fn order_by_locality(&mut self) {
         self.order.clear();
         self.order.extend(
-            self.slots[..m]
+            self.slots[..self.len]
                 .iter()
                 .zip(0u64..)
                 .filter(|(slot, _)| slot.validity == Validity::Valid)
@@ -422,6 +431,7 @@ impl<const D: usize> Batch<D> {
         defer: f64,
         workers: &[Mutex<Worker<I::Scratch>>],
     ) {
+        self.order_by_locality();
         self.base = index.len() as u32;
         let (slots, valid) = (&self.slots, self.order.len());
         self.hits[..valid]
@@ -677,30 +687,25 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
         };
         let (lagging_ref, workers) = (&lagging, &workers);
         let share = deferral.share;
+        // The search job is pushed first, so it is the one an idle thread
+        // steals; the preparation waits on this thread's own queue, taken
+        // by whichever thread runs out of work first. The thread that owns
+        // the join thus mostly finishes last, and nobody sleeps on a latch.
         let (in_order, search) = rayon::join(
             || {
-                let t = Instant::now();
-                decide_in_order(
-                    cur,
-                    start,
-                    m,
-                    &mut index,
-                    goal,
-                    &mut in_order_worker,
-                    &mut out,
-                );
-                t.elapsed().as_secs_f64()
-            },
-            || {
-                // The preparation waits first in line to be stolen: by the
-                // in-order worker when it finishes first, else by this one
-                // after the search.
-                let t = Instant::now();
                 rayon::join(
                     || {
-                        if start + batch < n {
-                            next.search(lagging_ref, k, goal, share, workers);
-                        }
+                        let t = Instant::now();
+                        decide_in_order(
+                            cur,
+                            start,
+                            m,
+                            &mut index,
+                            goal,
+                            &mut in_order_worker,
+                            &mut out,
+                        );
+                        t.elapsed().as_secs_f64()
                     },
                     || {
                         if start + 2 * batch < n {
@@ -708,7 +713,14 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
                             after.prepare(recs, lagging_ref, header, &params.space, seed_keys);
                         }
                     },
-                );
+                )
+                .0
+            },
+            || {
+                let t = Instant::now();
+                if start + batch < n {
+                    next.search(lagging_ref, k, goal, share, workers);
+                }
                 t.elapsed().as_secs_f64()
             },
         );
