@@ -177,6 +177,9 @@ struct Seeds {
     deferred: u32,
     /// The cache key of the sample they were found or fetched for.
     seed_key: u32,
+    /// Whether the cache holds `ids` under `seed_key` already (they were
+    /// fetched from it and not replaced since), so filing them is moot.
+    filed: bool,
     ids: Vec<u32>,
     /// Their squared distances to the current query.
     d2: Vec<f64>,
@@ -252,14 +255,17 @@ impl SeedCache {
         self.keys[s].store(key, Relaxed);
     }
 
-    /// Copies the seeds of `key` into `ids`, if the cache has them.
-    fn load(&self, key: u32, ids: &mut [u32]) {
+    /// Copies the seeds of `key` into `ids`, if the cache has them, and
+    /// says whether it had.
+    fn load(&self, key: u32, ids: &mut [u32]) -> bool {
         let s = self.slot(key);
-        if self.keys[s].load(Relaxed) == key {
+        let hit = self.keys[s].load(Relaxed) == key;
+        if hit {
             for (id, a) in ids.iter_mut().zip(&self.ids[s * self.k..(s + 1) * self.k]) {
                 *id = a.load(Relaxed);
             }
         }
+        hit
     }
 }
 
@@ -270,6 +276,7 @@ impl Seeds {
             failed: false,
             deferred: 0,
             seed_key: u32::MAX,
+            filed: false,
             ids: Vec::with_capacity(k),
             d2: Vec::with_capacity(k),
             cache,
@@ -286,10 +293,10 @@ impl Seeds {
         if seed_key == self.seed_key || self.ids.len() != k {
             return;
         }
-        if self.seed_key != u32::MAX {
+        if self.seed_key != u32::MAX && !self.filed {
             self.cache.store(self.seed_key, &self.ids);
         }
-        self.cache.load(seed_key, &mut self.ids);
+        self.filed = self.cache.load(seed_key, &mut self.ids);
         self.seed_key = seed_key;
         if key != self.key {
             self.key = key;
@@ -320,6 +327,7 @@ impl Seeds {
             self.seed_key = seed_key;
             self.failed = !found.verdict.accepted();
             self.deferred = 0;
+            self.filed = false;
             self.ids.clear();
             self.ids.extend_from_slice(kb.ids());
         }
@@ -545,12 +553,22 @@ impl Deferral {
     }
 
     /// Adjusts the share after a batch whose in-order pass took
-    /// `in_order` seconds while the search of the next and the preparation
-    /// of the one after took `search`.
-    fn update(&mut self, in_order: f64, search: f64) {
+    /// `in_order` seconds and ran `deferred` deferred searches while the
+    /// search of the next batch took `search`. An in-order pass that is
+    /// slower without running any deferred search (the first samples of a
+    /// region, checked against a T that grows under them) has nothing to
+    /// hand back: lowering the share then would only cost the parallel
+    /// searches their deferrals once the pass is fast again.
+    fn update(&mut self, in_order: f64, search: f64, deferred: usize) {
         const STEP: f64 = 1.0 / 32.0;
         if !self.fixed {
-            let step = if in_order < search { STEP } else { -STEP };
+            let step = if in_order < search {
+                STEP
+            } else if deferred > 0 {
+                -STEP
+            } else {
+                0.0
+            };
             self.share = (self.share + step).clamp(0.0, 1.0);
         }
     }
@@ -569,6 +587,7 @@ struct Streaming<'a> {
 /// `start`) with the points stored since it ran, then decides and stores.
 /// Before a search or a recheck it tries the k nearest of its last search,
 /// as the parallel workers do: consecutive samples mostly share neighbours.
+/// Returns how many deferred searches it ran.
 #[allow(clippy::too_many_arguments)]
 fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
     batch: &Batch<D>,
@@ -578,11 +597,12 @@ fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
     goal: Goal,
     worker: &mut Worker<I::Scratch>,
     out: &mut Streaming,
-) {
+) -> usize {
     let Worker {
         kb, scratch, seeds, ..
     } = worker;
     let k = kb.k();
+    let mut deferred = 0;
     for (i, slot) in batch.slots[..m].iter().enumerate() {
         let rec = start + i;
         if slot.validity != Validity::Valid {
@@ -601,6 +621,7 @@ fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
         } else if goal == Goal::Decide && seeds.accept(&*index, &slot.p, k) {
             ACCEPTED
         } else if hit.deferred {
+            deferred += 1;
             let found = index.search(&slot.p, None, goal, kb, scratch);
             seeds.remember(kb, slot.key, slot.seed_key, &found);
             found
@@ -620,6 +641,7 @@ fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
             out.decisions[rec] = Decision::Rejected as u8;
         }
     }
+    deferred
 }
 
 fn replay<const D: usize, I: NeighbourIndex<D>>(
@@ -691,12 +713,12 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
         // steals; the preparation waits on this thread's own queue, taken
         // by whichever thread runs out of work first. The thread that owns
         // the join thus mostly finishes last, and nobody sleeps on a latch.
-        let (in_order, search) = rayon::join(
+        let ((in_order, deferred), search) = rayon::join(
             || {
                 rayon::join(
                     || {
                         let t = Instant::now();
-                        decide_in_order(
+                        let deferred = decide_in_order(
                             cur,
                             start,
                             m,
@@ -705,7 +727,7 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
                             &mut in_order_worker,
                             &mut out,
                         );
-                        t.elapsed().as_secs_f64()
+                        (t.elapsed().as_secs_f64(), deferred)
                     },
                     || {
                         if start + 2 * batch < n {
@@ -724,7 +746,7 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
                 t.elapsed().as_secs_f64()
             },
         );
-        deferral.update(in_order, search);
+        deferral.update(in_order, search, deferred);
         for id in lagging.len()..index.len() {
             lagging.insert(*index.point(id as u32));
         }
@@ -809,6 +831,31 @@ mod tests {
     }
 
     /// Seeds go by pixel while every pixel's fit in 2^22 ids, else by cell.
+    /// Seeds fetched from the shared cache and not replaced are not filed
+    /// back: the write would be redundant, and would undo another worker's
+    /// newer seeds for the same key.
+    #[test]
+    fn seeds_only_read_are_not_filed_back() {
+        let cache = Arc::new(SeedCache::new(2, 16));
+        let (mut a, mut b) = (Seeds::new(2, cache.clone()), Seeds::new(2, cache.clone()));
+        a.key = 7;
+        a.seed_key = 7;
+        a.ids.extend([1, 2]);
+        a.visit(8, 8); // files [1, 2] under 7
+        b.ids.extend([0, 0]);
+        b.visit(7, 7);
+        assert_eq!(&b.ids[..], &[1, 2]);
+        // Meanwhile `a` finds newer seeds for 7 and files them.
+        a.visit(7, 7);
+        a.ids.copy_from_slice(&[5, 6]);
+        a.filed = false; // as `remember` leaves it
+        a.visit(8, 8);
+        b.visit(9, 9);
+        let mut ids = [0; 2];
+        assert!(cache.load(7, &mut ids));
+        assert_eq!(ids, [5, 6]);
+    }
+
     #[test]
     fn seeds_are_kept_by_pixel_when_the_film_is_small() {
         use crate::dump::{Header, Order};
@@ -827,20 +874,23 @@ mod tests {
             share: 0.5,
             fixed: false,
         };
-        d.update(1.0, 2.0);
+        d.update(1.0, 2.0, 0);
         assert!(d.share > 0.5);
         for _ in 0..100 {
-            d.update(1.0, 2.0);
+            d.update(1.0, 2.0, 7);
         }
         assert_eq!(d.share, 1.0);
-        d.update(2.0, 1.0);
+        // Slower in order but with no deferred search to give back.
+        d.update(2.0, 1.0, 0);
+        assert_eq!(d.share, 1.0);
+        d.update(2.0, 1.0, 7);
         assert!(d.share < 1.0);
         for _ in 0..100 {
-            d.update(2.0, 1.0);
+            d.update(2.0, 1.0, 7);
         }
         assert_eq!(d.share, 0.0);
         let mut fixed = Deferral::new(Some(0.25));
-        fixed.update(2.0, 1.0);
+        fixed.update(2.0, 1.0, 7);
         assert_eq!(fixed.share, 0.25);
     }
 }
