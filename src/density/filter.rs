@@ -158,6 +158,11 @@ struct Hit {
 
 const SUB_BLOCK: usize = 256;
 
+/// Records per job of the parallel search: small, because the last job of
+/// a batch is waited for (at k = 50 a job of 256 searches took ~0.25 ms,
+/// and half of one was lost per batch).
+const SEARCH_BLOCK: usize = 64;
+
 /// Deferred searches in a row before a worker searches again to refresh
 /// its seeds (see [`Deferral`]).
 const REFRESH: u32 = 16;
@@ -443,9 +448,9 @@ impl<const D: usize> Batch<D> {
         self.base = index.len() as u32;
         let (slots, valid) = (&self.slots, self.order.len());
         self.hits[..valid]
-            .par_chunks_mut(SUB_BLOCK)
-            .zip(self.kbuf[..valid * k].par_chunks_mut(SUB_BLOCK * k))
-            .zip(self.order.par_chunks(SUB_BLOCK))
+            .par_chunks_mut(SEARCH_BLOCK)
+            .zip(self.kbuf[..valid * k].par_chunks_mut(SEARCH_BLOCK * k))
+            .zip(self.order.par_chunks(SEARCH_BLOCK))
             .for_each(|((hits, kbuf), order)| {
                 // Each thread keeps its state from job to job and batch
                 // to batch (buffers, the tile's block, the seeds): the
