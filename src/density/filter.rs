@@ -7,8 +7,9 @@
 //! stored since that state (see [`NeighbourIndex::recheck`]) before it is
 //! decided. The in-order pass over batch b overlaps the search of batch
 //! b + 1, which therefore reads a copy of T one batch behind, and the
-//! preparation of batch b + 2 (classification, joint-space points and the
-//! sort of its search order, which need no T). Searches
+//! preparation of batch b + 2 (classification and joint-space points,
+//! which need no T; a batch is sorted into its search order when its
+//! search starts). Searches
 //! likely to fail against that copy may be left to the in-order pass
 //! ([`Deferral`]), which searches the current T instead. The final pass
 //! searches a fixed T, so it is parallel as is.
