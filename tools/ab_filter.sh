@@ -14,6 +14,11 @@ old=$1 new=$2 dump=$3 k=$4 threads=$5 runs=$6
 t_old=${threads%,*} t_new=${threads#*,}
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
+# One uncounted run of each side first: right after a build the dump may
+# have to be read back from disk.
+for bin in "$old" "$new"; do
+  "$bin" filter "$dump" -o "$out/warm" --k "$k" --threads 1 --no-html >/dev/null
+done
 for i in $(seq "$runs"); do
   # Alternate which side goes first, so neither always follows the other.
   order="old new"; [ $((i % 2)) -eq 0 ] && order="new old"
