@@ -160,8 +160,8 @@ struct Hit {
 const SUB_BLOCK: usize = 256;
 
 /// Records per job of the parallel search: small, because the last job of
-/// a batch is waited for (at k = 50 a job of 256 searches took ~0.25 ms,
-/// and half of one was lost per batch).
+/// a batch is waited for (pass-major, k = 50: 256 records took 66 µs on
+/// average, and jobs of 64 cut the threads' idle time from ~9% to ~6%).
 const SEARCH_BLOCK: usize = 64;
 
 /// Deferred searches in a row before a worker searches again to refresh
