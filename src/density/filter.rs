@@ -157,6 +157,7 @@ struct Hit {
     deferred: bool,
 }
 
+/// Records per job of the preparation, and the smallest batch.
 const SUB_BLOCK: usize = 256;
 
 /// Records per job of the parallel search: small, because the last job of
@@ -534,7 +535,8 @@ impl<S: Default> Worker<S> {
 /// parallel search altogether. With one thread that is pure gain; with
 /// more, the in-order pass must not become the bottleneck, so the share
 /// follows the timings: up while the in-order pass finishes first, down
-/// while it is the one waited for. Only the timings depend on the share.
+/// while it is the one waited for and has deferred searches to hand back.
+/// Only the timings depend on the share.
 struct Deferral {
     share: f64,
     fixed: bool,
@@ -681,10 +683,10 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
     let t0 = Instant::now();
     let batch = params.batch.max(SUB_BLOCK);
     // Two copies of T: `index` is current; `lagging` trails it by one batch.
-    // While one worker decides batch b in order (inserting into `index`),
-    // the others search batch b + 1 against `lagging` and prepare batch
-    // b + 2; the rechecks then offer everything stored since, so the lag
-    // changes no result. The serial steps (the in-order pass, the sort of a
+    // While one worker decides batch b in order (inserting into `index`)
+    // and then prepares batch b + 2, the others search batch b + 1 against
+    // `lagging` (each side helps the other when done); the rechecks then
+    // offer everything stored since, so the lag changes no result. The serial steps (the in-order pass, the sort of a
     // batch's search order) thus overlap parallel work.
     let mut index = make_index();
     let mut lagging = make_index();
