@@ -806,7 +806,7 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
 
 #[cfg(test)]
 mod tests {
-    use super::{Deferral, SeedCache, SeedKeys, Seeds};
+    use super::{ACCEPTED, Deferral, KBest, SeedCache, SeedKeys, Seeds};
     use std::sync::Arc;
 
     /// A worker coming back to a key gets that key's seeds back, not the
@@ -861,8 +861,10 @@ mod tests {
         assert_eq!(&b.ids[..], &[1, 2]);
         // Meanwhile `a` finds newer seeds for 7 and files them.
         a.visit(7, 7);
-        a.ids.copy_from_slice(&[5, 6]);
-        a.filed = false; // as `remember` leaves it
+        let mut kb = KBest::new(2);
+        kb.push(0.25, 5);
+        kb.push(0.5, 6);
+        a.remember(&kb, 7, 7, &ACCEPTED);
         a.visit(8, 8);
         b.visit(9, 9);
         let mut ids = [0; 2];
