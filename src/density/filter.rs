@@ -137,7 +137,6 @@ const ACCEPTED: Found = Found {
 /// One record of a batch, classified and mapped to the joint space.
 #[derive(Clone, Copy)]
 struct Slot<const D: usize> {
-    validity: Validity,
     /// The index's locality key of `p`.
     key: u32,
     /// The key its seeds are cached under ([`SeedKeys`]).
@@ -343,8 +342,10 @@ impl Seeds {
 
 /// One batch's records after the parallel search.
 struct Batch<const D: usize> {
-    /// In file order; the first `len` are prepared.
+    /// In file order; the first `len` are prepared. A slot holds a point
+    /// only where `validity` says the record is valid.
     slots: Vec<Slot<D>>,
+    validity: Vec<Validity>,
     len: usize,
     /// (locality key << 32 | position in the batch), sorted: the order the
     /// records are searched in, so that neighbours share a worker's caches
@@ -353,6 +354,11 @@ struct Batch<const D: usize> {
     /// Search results in `order`'s order, and the k nearest squared
     /// distances each found (`k` per hit).
     hits: Vec<Hit>,
+    /// In `order`'s order: accepted by the search for good (while deciding,
+    /// not deferred). The in-order pass reads this byte rather than the
+    /// record's slot and hit: those were written on another core and most
+    /// records need nothing else.
+    accepted: Vec<bool>,
     kbuf: Vec<f64>,
     /// Position in `hits` of each record of the batch.
     pos: Vec<u32>,
@@ -363,7 +369,6 @@ struct Batch<const D: usize> {
 impl<const D: usize> Batch<D> {
     fn new(len: usize, k: usize) -> Batch<D> {
         let slot = Slot {
-            validity: Validity::NonFinite,
             key: 0,
             seed_key: 0,
             p: [0.0; D],
@@ -376,9 +381,11 @@ impl<const D: usize> Batch<D> {
         };
         Batch {
             slots: vec![slot; len],
+            validity: vec![Validity::NonFinite; len],
             len: 0,
             order: Vec::with_capacity(len),
             hits: vec![hit; len],
+            accepted: vec![false; len],
             kbuf: vec![0.0; len * k],
             pos: vec![0; len],
             base: 0,
@@ -399,11 +406,12 @@ impl<const D: usize> Batch<D> {
         let m = recs.len();
         self.slots[..m]
             .par_chunks_mut(SUB_BLOCK)
+            .zip(self.validity[..m].par_chunks_mut(SUB_BLOCK))
             .zip(recs.par_chunks(SUB_BLOCK))
-            .for_each(|(slots, recs)| {
-                for (slot, rec) in slots.iter_mut().zip(recs) {
-                    slot.validity = rec.validity(header);
-                    if slot.validity == Validity::Valid {
+            .for_each(|((slots, validity), recs)| {
+                for ((slot, v), rec) in slots.iter_mut().zip(validity).zip(recs) {
+                    *v = rec.validity(header);
+                    if *v == Validity::Valid {
                         slot.p = space.point::<D>(rec);
                         slot.key = index.locality(&slot.p);
                         slot.seed_key = if seed_keys.by_pixel {
@@ -426,9 +434,10 @@ impl<const D: usize> Batch<D> {
         self.order.extend(
             self.slots[..self.len]
                 .iter()
+                .zip(&self.validity)
                 .zip(0u64..)
-                .filter(|(slot, _)| slot.validity == Validity::Valid)
-                .map(|(slot, i)| (slot.key as u64) << 32 | i),
+                .filter(|((_, v), _)| **v == Validity::Valid)
+                .map(|((slot, _), i)| (slot.key as u64) << 32 | i),
         );
         self.order.sort_unstable();
         for (j, &key) in self.order.iter().enumerate() {
@@ -451,9 +460,10 @@ impl<const D: usize> Batch<D> {
         let (slots, valid) = (&self.slots, self.order.len());
         self.hits[..valid]
             .par_chunks_mut(SEARCH_BLOCK)
+            .zip(self.accepted[..valid].par_chunks_mut(SEARCH_BLOCK))
             .zip(self.kbuf[..valid * k].par_chunks_mut(SEARCH_BLOCK * k))
             .zip(self.order.par_chunks(SEARCH_BLOCK))
-            .for_each(|((hits, kbuf), order)| {
+            .for_each(|(((hits, accepted), kbuf), order)| {
                 // Each thread keeps its state from job to job and batch
                 // to batch (buffers, the tile's block, the seeds): the
                 // lock is only ever taken by the thread it belongs to.
@@ -493,6 +503,9 @@ impl<const D: usize> Batch<D> {
                     hit.klen = kb.as_slice().len();
                     hit.sorted = kb.is_sorted();
                     kd[..hit.klen].copy_from_slice(kb.as_slice());
+                }
+                for (a, hit) in accepted.iter_mut().zip(&*hits) {
+                    *a = goal == Goal::Decide && !hit.deferred && hit.found.verdict.accepted();
                 }
             });
     }
@@ -626,15 +639,20 @@ fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
     } = worker;
     let k = kb.k();
     let mut deferred = 0;
-    for (i, slot) in batch.slots[..m].iter().enumerate() {
+    for (i, &validity) in batch.validity[..m].iter().enumerate() {
         let rec = start + i;
-        if slot.validity != Validity::Valid {
-            out.counts.invalid.add(slot.validity);
+        if validity != Validity::Valid {
+            out.counts.invalid.add(validity);
             continue;
         }
         out.counts.valid += 1;
         let j = batch.pos[i] as usize;
-        let hit = &batch.hits[j];
+        if batch.accepted[j] {
+            out.decisions[rec] = Decision::AcceptedStreaming as u8;
+            out.counts.accepted_streaming += 1;
+            continue;
+        }
+        let (slot, hit) = (&batch.slots[i], &batch.hits[j]);
         let settled = !hit.deferred
             && (index.len() == batch.base as usize
                 || (goal == Goal::Decide && hit.found.verdict.accepted()));
