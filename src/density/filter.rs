@@ -598,10 +598,10 @@ impl Deferral {
 /// Waits for `flag` without parking the thread: runs pending pool jobs,
 /// else yields the core. Both sides of a batch wait this way for each
 /// other, so neither is parked at the batch's end. rayon parks a thread
-/// after ~32 idle rounds, and waking a parked thread on the benchmark
-/// machine (a 2-core VM) took 1 µs at the median but 43 µs at the 90th
-/// percentile and 0.8 ms at the 99th: 42 ms of a 0.68 s replay (pixel-major,
-/// k = 10, 2 threads) went to the searching thread's late start alone.
+/// after ~32 idle rounds; on the benchmark machine (a 2-core VM) the
+/// search of a batch then started 0.8 µs late at the median but 43 µs at
+/// the 90th percentile and 0.8 ms at the 99th, 42 ms of a 0.68 s replay
+/// (pixel-major, k = 10, 2 threads).
 fn wait_for(flag: &AtomicBool) {
     while !flag.load(Acquire) {
         if rayon::yield_now() != Some(rayon::Yield::Executed) {
@@ -652,10 +652,10 @@ fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
             out.counts.accepted_streaming += 1;
             continue;
         }
+        // Not accepted by the search: its verdict stands only if nothing
+        // was stored since.
         let (slot, hit) = (&batch.slots[i], &batch.hits[j]);
-        let settled = !hit.deferred
-            && (index.len() == batch.base as usize
-                || (goal == Goal::Decide && hit.found.verdict.accepted()));
+        let settled = !hit.deferred && index.len() == batch.base as usize;
         if !settled {
             // Only the samples that need them visit the seeds: in a
             // pass-major dump every sample is a new pixel, and filing and
