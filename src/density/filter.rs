@@ -134,7 +134,8 @@ const ACCEPTED: Found = Found {
     reach: 0,
 };
 
-/// One record of a batch, classified and mapped to the joint space.
+/// One record of a batch mapped to the joint space; meaningful only where
+/// the batch's `validity` says the record is valid.
 #[derive(Clone, Copy)]
 struct Slot<const D: usize> {
     /// The index's locality key of `p`.
@@ -719,8 +720,9 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
     // While one worker decides batch b in order (inserting into `index`)
     // and then prepares batch b + 2, the others search batch b + 1 against
     // `lagging` (each side helps the other when done); the rechecks then
-    // offer everything stored since, so the lag changes no result. The serial steps (the in-order pass, the sort of a
-    // batch's search order) thus overlap parallel work.
+    // offer everything stored since, so the lag changes no result. The
+    // serial steps (the in-order pass, the sort of a batch's search order)
+    // thus overlap parallel work.
     let mut index = make_index();
     let mut lagging = make_index();
     // This batch (decided in order), the next (searched), the one after
@@ -756,7 +758,9 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
         };
         let (lagging_ref, workers) = (&lagging, &workers);
         let share = deferral.share;
-        let (in_order_done, search_done) = (&AtomicBool::new(false), &AtomicBool::new(false));
+        // Set when this batch's in-order pass and the preparation after it
+        // are done, and when the next batch's search is.
+        let (decided, searched) = (&AtomicBool::new(false), &AtomicBool::new(false));
         // The search job is pushed first, so it is the one an idle thread
         // steals; the preparation waits on this thread's own queue, taken
         // by whichever thread runs out of work first. The thread that owns
@@ -787,8 +791,8 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
                     },
                 )
                 .0;
-                in_order_done.store(true, Release);
-                wait_for(search_done);
+                decided.store(true, Release);
+                wait_for(searched);
                 in_order
             },
             || {
@@ -797,8 +801,8 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
                     next.search(lagging_ref, k, goal, share, workers);
                 }
                 let search = t.elapsed().as_secs_f64();
-                search_done.store(true, Release);
-                wait_for(in_order_done);
+                searched.store(true, Release);
+                wait_for(decided);
                 search
             },
         );
@@ -886,7 +890,6 @@ mod tests {
         assert_eq!(&s.ids[..], &[8, 9]);
     }
 
-    /// Seeds go by pixel while every pixel's fit in 2^22 ids, else by cell.
     /// Seeds fetched from the shared cache and not replaced are not filed
     /// back: the write would be redundant, and would undo another worker's
     /// newer seeds for the same key.
@@ -914,6 +917,7 @@ mod tests {
         assert_eq!(ids, [5, 6]);
     }
 
+    /// Seeds go by pixel while every pixel's fit in 2^22 ids, else by cell.
     #[test]
     fn seeds_are_kept_by_pixel_when_the_film_is_small() {
         use crate::dump::{Header, Order};
