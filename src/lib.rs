@@ -6,13 +6,15 @@
 //! filter) → [`recon`] (images) → [`metrics`] → [`report`].
 
 pub mod commands;
+pub mod config;
 pub mod density;
 pub mod dump;
 pub mod imagespace;
 pub mod io;
 pub mod joint;
-pub mod methods;
 pub mod metrics;
+pub mod pipeline;
+pub mod progress;
 pub mod quantile;
 pub mod recon;
 pub mod regress;

@@ -3,19 +3,17 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use pathdensity::commands::{filter, info, regress, sweep};
-use pathdensity::density::{FilterParams, IndexKind};
+use pathdensity::config::{FilterConfig, Method, Recon, White};
+use pathdensity::density::IndexKind;
 use pathdensity::dump::Order;
-use pathdensity::imagespace::bilateral::BilateralParams;
-use pathdensity::joint::JointSpace;
-use pathdensity::joint::white::White;
-use pathdensity::methods::Method;
-use pathdensity::recon::ReconFilter;
-use pathdensity::recon::rwmc::RwmcParams;
 use pathdensity::sweep::SweepOptions;
 use pathdensity::synth::SynthParams;
+
+mod bar;
+use bar::Bar;
 
 #[derive(Parser)]
 #[command(
@@ -28,17 +26,90 @@ struct Cli {
     command: Command,
 }
 
-#[derive(Clone, Copy, ValueEnum)]
-enum Recon {
-    Box,
-    Gaussian,
+/// Every field of [`FilterConfig`] as a flag; the defaults are
+/// [`FilterConfig::DEFAULT`]'s.
+#[derive(Args)]
+struct ConfigArgs {
+    #[arg(long, default_value_t = D.k)]
+    k: usize,
+    #[arg(long, default_value_t = D.sigma_image)]
+    sigma_image: f64,
+    #[arg(long, default_value_t = D.sigma_color)]
+    sigma_color: f64,
+    #[arg(long, default_value_t = D.sigma_time)]
+    sigma_time: f64,
+    /// Luminance of white (radiance that maps to L* = 100), or `auto`:
+    /// the dump's median positive luminance maps to L* = 50.
+    #[arg(long, default_value_t = D.white)]
+    white: White,
+    /// box or gaussian.
+    #[arg(long, default_value_t = D.recon)]
+    recon: Recon,
+    /// grid or kdtree (results do not depend on it).
+    #[arg(long, default_value_t = D.index)]
+    index: IndexKind,
+    /// Images besides mean and filtered (default: all).
+    #[arg(long, value_delimiter = ',')]
+    methods: Option<Vec<Method>>,
+    /// α of the trimmed mean: ⌊α n⌋ samples dropped at each end.
+    #[arg(long, default_value_t = D.alpha)]
+    alpha: f64,
+    /// Spatial σ of the bilateral filter, in pixels.
+    #[arg(long, default_value_t = D.bilateral_sigma_s)]
+    bilateral_sigma_s: f64,
+    /// Range σ of the bilateral filter, in CIELAB ΔE.
+    #[arg(long, default_value_t = D.bilateral_sigma_r)]
+    bilateral_sigma_r: f64,
+    /// Groups of the median of means (mon, gmon).
+    #[arg(long, default_value_t = D.mon_groups)]
+    mon_groups: usize,
+    /// rwmc: number of cascades S.
+    #[arg(long, default_value_t = D.rwmc_cascades)]
+    rwmc_cascades: usize,
+    /// rwmc: luminance s₀ where the second cascade starts.
+    #[arg(long, default_value_t = D.rwmc_start)]
+    rwmc_start: f64,
+    /// rwmc: ratio b between cascades.
+    #[arg(long, default_value_t = D.rwmc_base)]
+    rwmc_base: f64,
+    /// rwmc: κ, samples a bright feature needs to be trusted.
+    #[arg(long, default_value_t = D.rwmc_kappa)]
+    rwmc_kappa: f64,
+    /// rwmc: luminance always considered reliable.
+    #[arg(long, default_value_t = D.rwmc_min_luminance)]
+    rwmc_min_luminance: f64,
+    /// filtered_energy: σ (pixels) of the spread of the removed energy.
+    #[arg(long, default_value_t = D.energy_sigma)]
+    energy_sigma: f64,
+    /// Exposure of the PNG previews and the display metrics.
+    #[arg(long, default_value_t = D.exposure)]
+    exposure: f64,
 }
 
-impl From<Recon> for ReconFilter {
-    fn from(r: Recon) -> ReconFilter {
-        match r {
-            Recon::Box => ReconFilter::Box,
-            Recon::Gaussian => ReconFilter::gaussian(),
+const D: FilterConfig = FilterConfig::DEFAULT;
+
+impl From<ConfigArgs> for FilterConfig {
+    fn from(a: ConfigArgs) -> FilterConfig {
+        FilterConfig {
+            k: a.k,
+            sigma_image: a.sigma_image,
+            sigma_color: a.sigma_color,
+            sigma_time: a.sigma_time,
+            white: a.white,
+            recon: a.recon,
+            index: a.index,
+            methods: a.methods.map_or(D.methods, |m| m.into_iter().collect()),
+            alpha: a.alpha,
+            bilateral_sigma_s: a.bilateral_sigma_s,
+            bilateral_sigma_r: a.bilateral_sigma_r,
+            mon_groups: a.mon_groups,
+            rwmc_cascades: a.rwmc_cascades,
+            rwmc_start: a.rwmc_start,
+            rwmc_base: a.rwmc_base,
+            rwmc_kappa: a.rwmc_kappa,
+            rwmc_min_luminance: a.rwmc_min_luminance,
+            energy_sigma: a.energy_sigma,
+            exposure: a.exposure,
         }
     }
 }
@@ -63,26 +134,11 @@ enum Command {
         dump: PathBuf,
         #[arg(short, long)]
         out: PathBuf,
-        #[arg(long, default_value_t = 10)]
-        k: usize,
-        #[arg(long, default_value_t = 3.0)]
-        sigma_image: f64,
-        #[arg(long, default_value_t = 100.0)]
-        sigma_color: f64,
-        #[arg(long, default_value_t = 2.0)]
-        sigma_time: f64,
-        /// Luminance of white (radiance that maps to L* = 100), or `auto`:
-        /// the dump's median positive luminance maps to L* = 50.
-        #[arg(long, default_value = "1")]
-        white: White,
-        #[arg(long, value_enum, default_value_t = Recon::Box)]
-        recon: Recon,
+        #[command(flatten)]
+        config: ConfigArgs,
         /// Reference EXR (for an animation, REF.exr names REF_0000.exr, …).
         #[arg(long)]
         reference: Option<PathBuf>,
-        /// Exposure of the PNG previews and the display metrics.
-        #[arg(long, default_value_t = 1.0)]
-        exposure: f64,
         /// Worker threads (default: one per core).
         #[arg(long, default_value_t = 0)]
         threads: usize,
@@ -92,20 +148,6 @@ enum Command {
         /// Also write sigma.exr (exact σ of every sample; slower).
         #[arg(long)]
         sigma_map: bool,
-        #[arg(long, value_enum, default_value_t = IndexKind::Grid)]
-        index: IndexKind,
-        /// Images besides mean and filtered (default: all).
-        #[arg(long, value_enum, value_delimiter = ',')]
-        methods: Option<Vec<Method>>,
-        /// α of the trimmed mean: ⌊α n⌋ samples dropped at each end.
-        #[arg(long, default_value_t = 0.1)]
-        alpha: f64,
-        /// Spatial σ of the bilateral filter, in pixels.
-        #[arg(long, default_value_t = 2.0)]
-        bilateral_sigma_s: f64,
-        /// Range σ of the bilateral filter, in CIELAB ΔE.
-        #[arg(long, default_value_t = 20.0)]
-        bilateral_sigma_r: f64,
         /// Film row of the joint-density slice plot (default: the middle).
         #[arg(long)]
         slice_row: Option<u32>,
@@ -113,27 +155,6 @@ enum Command {
         /// no exact σ is needed).
         #[arg(long)]
         no_html: bool,
-        /// Groups of the median of means (mon, gmon).
-        #[arg(long, default_value_t = 11)]
-        mon_groups: usize,
-        /// rwmc: number of cascades S.
-        #[arg(long, default_value_t = 6)]
-        rwmc_cascades: usize,
-        /// rwmc: luminance s₀ where the second cascade starts.
-        #[arg(long, default_value_t = 1.0)]
-        rwmc_start: f64,
-        /// rwmc: ratio b between cascades.
-        #[arg(long, default_value_t = 8.0)]
-        rwmc_base: f64,
-        /// rwmc: κ, samples a bright feature needs to be trusted.
-        #[arg(long, default_value_t = 32.0)]
-        rwmc_kappa: f64,
-        /// rwmc: luminance always considered reliable.
-        #[arg(long, default_value_t = 0.05)]
-        rwmc_min_luminance: f64,
-        /// filtered_energy: σ (pixels) of the spread of the removed energy.
-        #[arg(long, default_value_t = 8.0)]
-        energy_sigma: f64,
     },
     /// Run the filter over a grid of k, σ_color, σ_image and white.
     Sweep {
@@ -151,11 +172,11 @@ enum Command {
         /// White luminances, numbers or `auto`.
         #[arg(long, value_delimiter = ',', default_value = "1")]
         white: Vec<White>,
-        #[arg(long, default_value_t = 2.0)]
+        #[arg(long, default_value_t = D.sigma_time)]
         sigma_time: f64,
-        #[arg(long, value_enum, default_value_t = Recon::Box)]
+        #[arg(long, default_value_t = D.recon)]
         recon: Recon,
-        #[arg(long, default_value_t = 1.0)]
+        #[arg(long, default_value_t = D.exposure)]
         exposure: f64,
         #[arg(long, default_value_t = 0)]
         threads: usize,
@@ -168,10 +189,10 @@ enum Command {
         #[arg(long)]
         render_seconds: Option<f64>,
         /// Group counts of the mon and gmon baselines.
-        #[arg(long, value_delimiter = ',', default_values_t = [11])]
+        #[arg(long, value_delimiter = ',', default_values_t = [D.mon_groups])]
         mon_groups: Vec<usize>,
         /// κ values of the rwmc baseline.
-        #[arg(long, value_delimiter = ',', default_values_t = [32.0])]
+        #[arg(long, value_delimiter = ',', default_values_t = [D.rwmc_kappa])]
         rwmc_kappa: Vec<f64>,
     },
     /// Re-run every regression fixture and compare with its expectations.
@@ -237,74 +258,23 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Filter {
             dump,
             out,
-            k,
-            sigma_image,
-            sigma_color,
-            sigma_time,
-            white,
-            recon,
+            config,
             reference,
-            exposure,
             threads,
             decisions,
             sigma_map,
-            index,
-            methods,
-            alpha,
-            bilateral_sigma_s,
-            bilateral_sigma_r,
             slice_row,
             no_html,
-            mon_groups,
-            rwmc_cascades,
-            rwmc_start,
-            rwmc_base,
-            rwmc_kappa,
-            rwmc_min_luminance,
-            energy_sigma,
         } => {
             let mut o = filter::FilterOptions::new(dump, out);
-            o.params = FilterParams {
-                k,
-                space: JointSpace {
-                    sigma_image,
-                    sigma_color,
-                    sigma_time,
-                    white: match white {
-                        White::Fixed(v) => v,
-                        White::Auto => 1.0,
-                    },
-                },
-                index,
-                ..FilterParams::default()
-            };
-            o.recon = recon.into();
+            o.config = config.into();
             o.reference = reference;
-            o.exposure = exposure;
             o.threads = threads;
             o.decisions = decisions;
             o.sigma_map = sigma_map;
-            if let Some(m) = methods {
-                o.methods = m;
-            }
-            o.alpha = alpha;
-            o.mon_groups = mon_groups;
-            o.rwmc = RwmcParams {
-                cascades: rwmc_cascades,
-                start: rwmc_start,
-                base: rwmc_base,
-                kappa: rwmc_kappa,
-                min_luminance: rwmc_min_luminance,
-            };
-            o.energy_sigma = energy_sigma;
-            o.bilateral = BilateralParams {
-                sigma_s: bilateral_sigma_s,
-                sigma_r: bilateral_sigma_r,
-            };
             o.slice_row = slice_row;
             o.html = !no_html;
-            o.white_auto = white == White::Auto;
-            let report = filter::filter(&o)?;
+            let report = filter::filter_with_progress(&o, &Bar::new("filter"))?;
             print!("{}", report.summary());
         }
         Command::Sweep {
@@ -329,15 +299,18 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             o.sigma_colors = sigma_color;
             o.sigma_images = sigma_image;
             o.whites = white;
-            o.sigma_time = sigma_time;
-            o.recon = recon.into();
-            o.exposure = exposure;
+            o.config.sigma_time = sigma_time;
+            o.config.recon = recon;
+            o.config.exposure = exposure;
             o.threads = threads;
             o.mon_groups = mon_groups;
             o.rwmc_kappas = rwmc_kappa;
             match render_seconds.filter(|_| equal_time) {
-                Some(secs) => print!("{}", sweep::equal_time(&o, secs)?),
-                None => print!("{}", sweep::table(&sweep::sweep(&o)?)),
+                Some(secs) => print!("{}", sweep::equal_time(&o, secs, &Bar::new("prefixes"))?),
+                None => print!(
+                    "{}",
+                    sweep::table(&sweep::sweep_with_progress(&o, &Bar::new("sweep"))?)
+                ),
             }
         }
         Command::Regress { dir, bless } => {

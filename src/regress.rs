@@ -10,47 +10,13 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
 
-use crate::commands::filter::{FilterOptions, filter};
-use crate::density::FilterCounts;
-use crate::imagespace::bilateral::BilateralParams;
+use crate::config::FilterConfig;
+use crate::dump::DumpReader;
 use crate::io::{atomic, exr};
-use crate::joint::JointSpace;
-use crate::methods::Method;
 use crate::metrics::Metrics;
-use crate::recon::ReconFilter;
-
-/// The configuration a fixture runs (the `filter` options that matter).
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-pub struct Config {
-    pub k: usize,
-    pub sigma_image: f64,
-    pub sigma_color: f64,
-    pub sigma_time: f64,
-    pub white: f64,
-    /// `box` or `gaussian` (s = 0.5, r = 1.5).
-    pub recon: String,
-    pub alpha: f64,
-    pub bilateral_sigma_s: f64,
-    pub bilateral_sigma_r: f64,
-}
-
-impl Default for Config {
-    fn default() -> Self {
-        let s = JointSpace::default();
-        let b = BilateralParams::default();
-        Config {
-            k: 10,
-            sigma_image: s.sigma_image,
-            sigma_color: s.sigma_color,
-            sigma_time: s.sigma_time,
-            white: s.white,
-            recon: "box".into(),
-            alpha: 0.1,
-            bilateral_sigma_s: b.sigma_s,
-            bilateral_sigma_r: b.sigma_r,
-        }
-    }
-}
+use crate::pipeline::{self, Run, RunOptions};
+use crate::progress::Silent;
+use crate::recon::{Image, stored};
 
 /// How far a re-run may drift before it is an error. Pixels compare as
 /// |a − b| ≤ abs + rel · |b|; metrics as |a − b| ≤ rel · |b|. The slack
@@ -85,7 +51,8 @@ pub struct ExpectedCounts {
 }
 
 impl ExpectedCounts {
-    fn of(c: &FilterCounts, fallback_pixels: u64) -> ExpectedCounts {
+    fn of(run: &Run) -> ExpectedCounts {
+        let c = &run.counts;
         ExpectedCounts {
             valid: c.valid,
             invalid: c.invalid.total(),
@@ -93,7 +60,7 @@ impl ExpectedCounts {
             accepted_final: c.accepted_final,
             rejected: c.rejected,
             stored: c.stored,
-            fallback_pixels,
+            fallback_pixels: run.fallback_pixels,
         }
     }
 }
@@ -133,8 +100,10 @@ pub struct Manifest {
     pub description: String,
     pub dump: String,
     pub reference: String,
+    /// The configuration to run (every field optional, as in
+    /// [`FilterConfig`]); run on one thread, without the σ map.
     #[serde(default)]
-    pub config: Config,
+    pub config: FilterConfig,
     #[serde(default)]
     pub tolerance: Tolerance,
     #[serde(default)]
@@ -167,58 +136,69 @@ fn read_manifest(dir: &Path) -> Result<Manifest> {
     serde_json::from_str(&text).with_context(|| format!("{}: not a manifest", path.display()))
 }
 
-/// Runs a fixture's configuration into `out` (no HTML report).
-fn run(dir: &Path, m: &Manifest, out: &Path) -> Result<crate::report::FilterReport> {
-    let c = &m.config;
-    let mut o = FilterOptions::new(dir.join(&m.dump), out);
-    o.params.k = c.k;
-    o.params.space = JointSpace {
-        sigma_image: c.sigma_image,
-        sigma_color: c.sigma_color,
-        sigma_time: c.sigma_time,
-        white: c.white,
-    };
-    o.recon = match c.recon.as_str() {
-        "box" => ReconFilter::Box,
-        "gaussian" => ReconFilter::gaussian(),
-        other => bail!("{}: unknown recon {other:?}", dir.display()),
-    };
-    o.reference = Some(dir.join(&m.reference));
-    o.alpha = c.alpha;
-    o.bilateral = BilateralParams {
-        sigma_s: c.bilateral_sigma_s,
-        sigma_r: c.bilateral_sigma_r,
-    };
-    o.methods = Method::ALL.to_vec();
-    o.html = false;
-    o.threads = 1;
-    filter(&o)
+/// A fixture's run: the pipeline on one thread, measured against the
+/// fixture's reference, and every image as `filter` would write it (file
+/// name, pixels as stored in the EXR).
+struct Outcome {
+    expected: Expected,
+    files: Vec<(String, Image)>,
 }
 
-fn expected_of(report: &crate::report::FilterReport) -> Expected {
-    Expected {
-        counts: ExpectedCounts::of(&report.counts, report.fallback_pixels),
-        metrics: report
+fn run(dir: &Path, m: &Manifest) -> Result<Outcome> {
+    let path = dir.join(&m.dump);
+    let dump = DumpReader::open(&path)?;
+    let h = dump.header();
+    let reference = exr::read_reference(
+        &dir.join(&m.reference),
+        h.width as usize,
+        h.height as usize,
+        h.frames as usize,
+    )?;
+    let run = pipeline::run(
+        dump.records(),
+        h,
+        &m.config,
+        &RunOptions {
+            threads: 1,
+            exact_sigma: false,
+            reference: Some(&reference),
+            progress: &Silent,
+        },
+    )
+    .with_context(|| format!("{}", dir.join("manifest.json").display()))?;
+    let mut images: Vec<(&str, Image)> = Vec::new();
+    for e in run.images.iter() {
+        images.push((e.method.name(), e.image.clone()));
+    }
+    images.push(("rejected", run.removed.clone()));
+    let mut files = Vec::new();
+    for (name, img) in images {
+        for f in 0..img.frames {
+            let mut frame = Image::new(img.width, img.height, 1);
+            for (out, p) in frame.data.iter_mut().zip(img.frame(f)) {
+                *out = p.map(|v| stored(v) as f64);
+            }
+            files.push((exr::frame_file_name(name, f, img.frames, "exr"), frame));
+        }
+    }
+    let expected = Expected {
+        counts: ExpectedCounts::of(&run),
+        metrics: run
             .metrics
             .iter()
             .map(|(n, m)| (n.clone(), (&m.pooled).into()))
             .collect(),
-        images: report
-            .outputs
-            .iter()
-            .filter(|f| f.ends_with(".exr"))
-            .cloned()
-            .collect(),
-    }
+        images: files.iter().map(|f| f.0.clone()).collect(),
+    };
+    Ok(Outcome { expected, files })
 }
 
 /// Re-runs the fixture in `dir` and lists every drift from its
 /// expectations (empty: the fixture passes).
 pub fn check(dir: &Path) -> Result<Vec<String>> {
     let m = read_manifest(dir)?;
-    let tmp = tempdir(dir)?;
-    let report = run(dir, &m, tmp.path())?;
-    let got = expected_of(&report);
+    let outcome = run(dir, &m)?;
+    let got = &outcome.expected;
     let want = &m.expected;
     let tol = &m.tolerance;
     let mut drift = Vec::new();
@@ -247,8 +227,11 @@ pub fn check(dir: &Path) -> Result<Vec<String>> {
     for file in &want.images {
         let expected = dir.join("expected").join(file);
         let (_, _, want_px) = exr::read_rgb(&expected)?;
-        let (_, _, got_px) = exr::read_rgb(&tmp.path().join(file))
-            .with_context(|| format!("{file}: no longer written"))?;
+        let Some((_, got_img)) = outcome.files.iter().find(|f| &f.0 == file) else {
+            drift.push(format!("{file}: no longer written"));
+            continue;
+        };
+        let got_px = &got_img.data;
         let (mut n, mut worst) = (0usize, (0.0f64, 0usize));
         for (i, (a, b)) in got_px.iter().zip(&want_px).enumerate() {
             for c in 0..3 {
@@ -274,9 +257,8 @@ pub fn check(dir: &Path) -> Result<Vec<String>> {
 /// Re-runs the fixture in `dir` and stores its results as the expectations.
 pub fn bless(dir: &Path) -> Result<Manifest> {
     let mut m = read_manifest(dir)?;
-    let tmp = tempdir(dir)?;
-    let report = run(dir, &m, tmp.path())?;
-    m.expected = expected_of(&report);
+    let outcome = run(dir, &m)?;
+    m.expected = outcome.expected;
     let expected_dir = dir.join("expected");
     if expected_dir.exists() {
         std::fs::remove_dir_all(&expected_dir)
@@ -284,42 +266,10 @@ pub fn bless(dir: &Path) -> Result<Manifest> {
     }
     std::fs::create_dir_all(&expected_dir)
         .with_context(|| format!("{}: cannot create", expected_dir.display()))?;
-    for f in &m.expected.images {
-        std::fs::copy(tmp.path().join(f), expected_dir.join(f))
-            .with_context(|| format!("{}: cannot copy", expected_dir.join(f).display()))?;
+    for (file, img) in &outcome.files {
+        exr::write_frame(&expected_dir.join(file), img, 0)?;
     }
     let json = serde_json::to_string_pretty(&m).expect("a manifest serialises") + "\n";
     atomic::write_bytes(&dir.join("manifest.json"), json.as_bytes())?;
     Ok(m)
-}
-
-/// A scratch directory beside the system's temporary files, removed on drop.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn path(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-fn tempdir(fixture: &Path) -> Result<TempDir> {
-    use std::sync::atomic::{AtomicU64, Ordering};
-    static N: AtomicU64 = AtomicU64::new(0);
-    let name = fixture
-        .file_name()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let p = std::env::temp_dir().join(format!(
-        "pathdensity-regress-{}-{}-{name}",
-        std::process::id(),
-        N.fetch_add(1, Ordering::Relaxed)
-    ));
-    std::fs::create_dir_all(&p).with_context(|| format!("{}: cannot create", p.display()))?;
-    Ok(TempDir(p))
 }

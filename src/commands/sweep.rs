@@ -1,16 +1,21 @@
 //! `pathdensity sweep`: the filter over a grid of parameters, written as
 //! `sweep.csv`, `sweep.json` and two plots, each as SVG and PNG.
 
-use anyhow::{Result, anyhow};
+use anyhow::{Context, Result, anyhow};
 
 use crate::io::atomic;
 use crate::metrics::Metrics;
+use crate::progress::{Progress, Silent};
 use crate::sweep::{self, Sweep, SweepOptions};
 
+/// Runs `o` with no progress shown.
 pub fn sweep(o: &SweepOptions) -> Result<Sweep> {
-    let configs = o.ks.len() * o.sigma_colors.len() * o.sigma_images.len() * o.whites.len();
-    let progress = super::progress_bar(configs as u64, "sweep");
-    let s = sweep::run(o, &progress)?;
+    sweep_with_progress(o, &Silent)
+}
+
+/// Runs the sweep of `o` and writes its files.
+pub fn sweep_with_progress(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
+    let s = sweep::run(o, progress)?;
     let dir = &o.out_dir;
     atomic::write_bytes(&dir.join("sweep.csv"), s.csv().as_bytes())?;
     let json = serde_json::to_vec_pretty(&s).expect("a sweep serialises");
@@ -71,10 +76,14 @@ pub fn table(s: &Sweep) -> String {
 
 /// `sweep --equal-time`: writes `equal_time.csv` and `equal_time.json`
 /// and returns the printed table.
-pub fn equal_time(o: &SweepOptions, render_seconds: f64) -> Result<String> {
-    std::fs::create_dir_all(&o.out_dir)?;
-    let progress = super::progress_bar(0, "prefixes");
-    let rows = sweep::equal_time(o, render_seconds, &progress)?;
+pub fn equal_time(
+    o: &SweepOptions,
+    render_seconds: f64,
+    progress: &dyn Progress,
+) -> Result<String> {
+    std::fs::create_dir_all(&o.out_dir)
+        .with_context(|| format!("{}: cannot create output directory", o.out_dir.display()))?;
+    let rows = sweep::equal_time(o, render_seconds, progress)?;
     let dir = &o.out_dir;
     atomic::write_bytes(
         &dir.join("equal_time.csv"),

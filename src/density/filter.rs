@@ -19,7 +19,6 @@ use std::sync::atomic::{AtomicBool, AtomicU32};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-use indicatif::ProgressBar;
 use rayon::prelude::*;
 
 use super::index::grid::Grid;
@@ -28,6 +27,7 @@ use super::index::{Found, IndexKind, NeighbourIndex};
 use super::sigma::{Goal, KBest, Sum, Verdict, classify};
 use crate::dump::{Header, InvalidCounts, Record, Validity};
 use crate::joint::{JointSpace, dist2};
+use crate::progress::Progress;
 
 /// The fate of one record, as written by `--decisions` (one byte each).
 #[repr(u8)]
@@ -46,33 +46,35 @@ impl Decision {
     }
 }
 
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct FilterParams {
-    pub k: usize,
-    pub space: JointSpace,
-    pub index: IndexKind,
+/// How the replay runs. None of these change a decision.
+#[derive(Clone, Debug)]
+pub struct ReplayOptions {
     /// Compute every sample's exact σ (needed for the σ map).
     pub exact_sigma: bool,
-    /// Samples per parallel batch; results do not depend on it.
-    #[serde(skip)]
+    /// Samples per parallel batch.
     pub batch: usize,
     /// The share of searches left to the in-order pass (see [`Deferral`]);
-    /// `None` adapts it to balance the threads. Results do not depend on it.
-    #[serde(skip)]
+    /// `None` adapts it to balance the threads.
     pub deferral: Option<f64>,
 }
 
-impl Default for FilterParams {
+impl Default for ReplayOptions {
     fn default() -> Self {
-        FilterParams {
-            k: 10,
-            space: JointSpace::default(),
-            index: IndexKind::Grid,
+        ReplayOptions {
             exact_sigma: false,
             batch: 4096,
             deferral: None,
         }
     }
+}
+
+/// The filter's parameters and how to run it, as the replay uses them.
+struct Params<'a> {
+    k: usize,
+    space: &'a JointSpace,
+    exact_sigma: bool,
+    batch: usize,
+    deferral: Option<f64>,
 }
 
 #[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -97,21 +99,32 @@ pub struct FilterResult {
     pub final_seconds: f64,
 }
 
-/// Runs the filter over `records` on the current rayon pool.
+/// Runs the filter (k nearest neighbours in the joint space `space`) over
+/// `records` on the current rayon pool.
 pub fn run(
     records: &[Record],
     header: &Header,
-    params: &FilterParams,
-    progress: &ProgressBar,
+    space: &JointSpace,
+    k: usize,
+    index: IndexKind,
+    options: &ReplayOptions,
+    progress: &dyn Progress,
 ) -> FilterResult {
-    assert!(params.k >= 1, "k must be at least 1");
-    let s = &params.space;
+    assert!(k >= 1, "k must be at least 1");
+    let params = &Params {
+        k,
+        space,
+        exact_sigma: options.exact_sigma,
+        batch: options.batch,
+        deferral: options.deferral,
+    };
+    let s = space;
     let extent = [
         header.width as f64 / s.sigma_image,
         header.height as f64 / s.sigma_image,
         header.frames as f64 / s.sigma_time,
     ];
-    match (header.animated(), params.index) {
+    match (header.animated(), index) {
         (false, IndexKind::Grid) => {
             replay::<5, _>(records, header, params, || Grid::new(extent), progress)
         }
@@ -695,9 +708,9 @@ fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
 fn replay<const D: usize, I: NeighbourIndex<D>>(
     records: &[Record],
     header: &Header,
-    params: &FilterParams,
+    params: &Params,
     make_index: impl Fn() -> I,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> FilterResult {
     let k = params.k;
     let goal = if params.exact_sigma {
@@ -738,7 +751,7 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
             &records[range(start)],
             &lagging,
             header,
-            &params.space,
+            params.space,
             seed_keys,
         );
     }
@@ -786,7 +799,7 @@ fn replay<const D: usize, I: NeighbourIndex<D>>(
                     || {
                         if start + 2 * batch < n {
                             let recs = &records[range(start + 2 * batch)];
-                            after.prepare(recs, lagging_ref, header, &params.space, seed_keys);
+                            after.prepare(recs, lagging_ref, header, params.space, seed_keys);
                         }
                     },
                 )

@@ -6,5 +6,5 @@ pub mod filter;
 pub mod index;
 pub mod sigma;
 
-pub use filter::{Decision, FilterCounts, FilterParams, FilterResult, run};
+pub use filter::{Decision, FilterCounts, FilterResult, ReplayOptions, run};
 pub use index::IndexKind;

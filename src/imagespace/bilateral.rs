@@ -6,6 +6,7 @@
 
 use rayon::prelude::*;
 
+use crate::config::FilterConfig;
 use crate::joint::lab::rgb_to_lab;
 use crate::recon::Image;
 
@@ -19,23 +20,7 @@ pub struct BilateralParams {
 
 impl Default for BilateralParams {
     fn default() -> Self {
-        BilateralParams {
-            sigma_s: 2.0,
-            sigma_r: 20.0,
-        }
-    }
-}
-
-impl BilateralParams {
-    pub fn validate(&self) -> Result<(), String> {
-        let ok = |v: f64| v > 0.0 && v.is_finite();
-        if !ok(self.sigma_s) || !ok(self.sigma_r) {
-            return Err("the bilateral filter needs finite σ_s > 0 and σ_r > 0".into());
-        }
-        if self.sigma_s > 1000.0 {
-            return Err("the bilateral σ_s is above 1000 pixels".into());
-        }
-        Ok(())
+        FilterConfig::DEFAULT.bilateral()
     }
 }
 

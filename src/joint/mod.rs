@@ -18,14 +18,10 @@ pub struct JointSpace {
 }
 
 impl Default for JointSpace {
-    /// The paper's defaults: σ_image = 3 px, σ_color = 100, σ_time = 2 frames.
+    /// The paper's scales ([`crate::config::FilterConfig::DEFAULT`]) with
+    /// white 1.
     fn default() -> Self {
-        JointSpace {
-            sigma_image: 3.0,
-            sigma_color: 100.0,
-            sigma_time: 2.0,
-            white: 1.0,
-        }
+        crate::config::FilterConfig::DEFAULT.space(1.0)
     }
 }
 
@@ -36,23 +32,6 @@ fn coord(v: f64) -> f32 {
 }
 
 impl JointSpace {
-    /// Checks the scales are positive and finite.
-    pub fn validate(&self) -> Result<(), String> {
-        for (name, v) in [
-            ("sigma-image", self.sigma_image),
-            ("sigma-color", self.sigma_color),
-            ("sigma-time", self.sigma_time),
-            ("white", self.white),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(format!(
-                    "--{name} must be a positive finite number, got {v}"
-                ));
-            }
-        }
-        Ok(())
-    }
-
     /// The joint point of a valid record. `D` is 5 for a still (no time
     /// axis) and 6 for an animation.
     #[inline]

@@ -17,9 +17,8 @@ use crate::quantile::{exact, rank};
 /// Y / Y_w at L* = 50.
 pub const MID_GREY: f64 = 0.184_186_2;
 
-/// `--white Y` or `--white auto`.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
+/// A fixed white luminance or `auto`. In JSON a number or `"auto"`.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum White {
     Fixed(f64),
     Auto,
@@ -44,6 +43,31 @@ impl std::fmt::Display for White {
             White::Fixed(v) => write!(f, "{v}"),
             White::Auto => write!(f, "auto"),
         }
+    }
+}
+
+impl serde::Serialize for White {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            White::Fixed(v) => s.serialize_f64(*v),
+            White::Auto => s.serialize_str("auto"),
+        }
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for White {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<White, D::Error> {
+        #[derive(serde::Deserialize)]
+        #[serde(untagged)]
+        enum Repr {
+            Number(f64),
+            Text(String),
+        }
+        let text = match Repr::deserialize(d)? {
+            Repr::Number(v) => v.to_string(),
+            Repr::Text(t) => t,
+        };
+        text.parse().map_err(serde::de::Error::custom)
     }
 }
 

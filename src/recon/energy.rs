@@ -22,9 +22,6 @@
 
 use super::Image;
 
-/// Default σ_e of the spread, in pixels.
-pub const DEFAULT_SPREAD_SIGMA: f64 = 8.0;
-
 /// Per pixel, `mean − filtered`.
 pub fn removed(mean: &Image, filtered: &Image) -> Image {
     let mut out = mean.clone();

@@ -13,9 +13,6 @@ use super::groups::{Channels, PixelGroups};
 use crate::dump::Header;
 use crate::joint::lab::luminance;
 
-/// Default group count (the authors' port uses 11).
-pub const DEFAULT_GROUPS: usize = 11;
-
 /// The group means of one pixel's samples, sorted by luminance (ties keep
 /// group order). Groups that received no sample (fewer samples than
 /// groups) are left out.

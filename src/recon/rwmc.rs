@@ -14,6 +14,7 @@ use rayon::prelude::*;
 
 use super::Image;
 use crate::dump::{Header, Record, Validity};
+use crate::config::FilterConfig;
 use crate::joint::lab::luminance;
 
 /// The method's parameters; the defaults are the authors'.
@@ -32,37 +33,13 @@ pub struct RwmcParams {
 }
 
 impl Default for RwmcParams {
+    /// The authors' defaults, as [`FilterConfig::DEFAULT`] states them.
     fn default() -> Self {
-        RwmcParams {
-            cascades: 6,
-            start: 1.0,
-            base: 8.0,
-            kappa: 32.0,
-            min_luminance: 0.05,
-        }
+        FilterConfig::DEFAULT.rwmc()
     }
 }
 
 impl RwmcParams {
-    pub fn validate(&self) -> Result<(), String> {
-        let ok = |v: f64| v.is_finite() && v > 0.0;
-        if !(2..=32).contains(&self.cascades) {
-            return Err(format!(
-                "--rwmc-cascades must be in 2..=32 (got {})",
-                self.cascades
-            ));
-        }
-        if !(ok(self.start) && ok(self.base) && self.base > 1.0 && ok(self.kappa)) {
-            return Err(
-                "--rwmc-start and --rwmc-kappa must be positive and --rwmc-base above 1".into(),
-            );
-        }
-        if !(self.min_luminance.is_finite() && self.min_luminance >= 0.0) {
-            return Err("--rwmc-min-luminance must be finite and not negative".into());
-        }
-        Ok(())
-    }
-
     /// Where a sample of luminance `l` goes: cascade i gets `w_lo` of its
     /// colour and cascade i + 1 gets `w_hi` (paper Eq. 8–9). Between s₀bⁱ
     /// and s₀bⁱ⁺¹ the split keeps the expected value and is linear in 1/l;
@@ -319,34 +296,5 @@ mod tests {
             centre > 0.49 && centre - 0.5 < 0.05 * (mean - 0.5),
             "{centre} vs mean {mean}"
         );
-    }
-
-    #[test]
-    fn parameters_are_checked() {
-        assert!(RwmcParams::default().validate().is_ok());
-        for bad in [
-            RwmcParams {
-                cascades: 1,
-                ..RwmcParams::default()
-            },
-            RwmcParams {
-                base: 1.0,
-                ..RwmcParams::default()
-            },
-            RwmcParams {
-                kappa: 0.0,
-                ..RwmcParams::default()
-            },
-            RwmcParams {
-                start: f64::NAN,
-                ..RwmcParams::default()
-            },
-            RwmcParams {
-                min_luminance: -1.0,
-                ..RwmcParams::default()
-            },
-        ] {
-            assert!(bad.validate().is_err(), "{bad:?}");
-        }
     }
 }

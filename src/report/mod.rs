@@ -2,17 +2,16 @@
 
 use std::collections::BTreeMap;
 
-use crate::density::{FilterCounts, FilterParams};
+use crate::config::{FilterConfig, Method};
+use crate::density::FilterCounts;
 use crate::dump::Header;
-use crate::imagespace::bilateral::BilateralParams;
 use crate::joint::lab::luminance;
-use crate::methods::Method;
 use crate::metrics::ImageMetrics;
-use crate::recon::rwmc::RwmcParams;
-use crate::recon::{Image, ReconFilter, energy};
+use crate::recon::{Image, energy};
 
 pub mod html;
 pub mod plots;
+pub mod sweep;
 
 use plots::SigmaScale;
 
@@ -37,13 +36,9 @@ pub struct EnergyRemoved {
 }
 
 impl EnergyRemoved {
-    pub fn new(removed: &Image, images: &[(Method, Image, f64)]) -> EnergyRemoved {
+    pub fn new(removed: &Image, mean: &Image) -> EnergyRemoved {
         let sum_rgb = energy::channel_sums(removed);
-        let mean = images
-            .iter()
-            .find(|(m, _, _)| *m == Method::Mean)
-            .map(|(_, img, _)| luminance(energy::channel_sums(img)))
-            .unwrap_or(0.0);
+        let mean = luminance(energy::channel_sums(mean));
         let removed_y = luminance(sum_rgb);
         EnergyRemoved {
             sum_rgb,
@@ -56,8 +51,10 @@ impl EnergyRemoved {
 pub struct FilterReport {
     pub dump: String,
     pub header: Header,
-    pub parameters: FilterParams,
-    pub recon: ReconFilter,
+    /// The configuration as given (`white` may be `auto`).
+    pub config: FilterConfig,
+    /// The white luminance Y_w used (`config.white`, resolved).
+    pub white: f64,
     pub threads: usize,
     pub counts: FilterCounts,
     pub fallback_pixels: u64,
@@ -70,20 +67,8 @@ pub struct FilterReport {
     /// Wall time to produce each image from the dump, passes it shares
     /// with other images included (see README).
     pub method_seconds: BTreeMap<String, f64>,
-    /// True when `parameters.space.white` was chosen by `--white auto`.
-    pub white_auto: bool,
     /// What the path-density filter took out (`rejected.exr`).
     pub energy_removed: EnergyRemoved,
-    /// Groups of mon and gmon.
-    pub mon_groups: usize,
-    pub rwmc: RwmcParams,
-    /// σ_e (pixels) of filtered_energy's spread.
-    pub energy_sigma: f64,
-    /// α of the trimmed mean.
-    pub alpha: f64,
-    pub bilateral: BilateralParams,
-    /// Exposure of the PNG previews and of RMS_display.
-    pub exposure: f64,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sigma_scale: Option<SigmaScale>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -154,10 +139,10 @@ impl FilterReport {
         // rwmc's counting reliability is at most spp / κ: below κ samples
         // per pixel no cascade is fully trusted and the image darkens.
         let spp = self.header.spp as f64;
-        if self.method_seconds.contains_key("rwmc") && spp > 0.0 && self.rwmc.kappa > spp / 2.0 {
+        if self.method_seconds.contains_key("rwmc") && spp > 0.0 && self.config.rwmc_kappa > spp / 2.0 {
             s += &format!(
                 "  note: rwmc's κ = {} needs well over κ samples per pixel; with {} spp try --rwmc-kappa {}\n",
-                self.rwmc.kappa,
+                self.config.rwmc_kappa,
                 self.header.spp,
                 (spp / 16.0).max(1.0)
             );

@@ -71,13 +71,33 @@ pub trait NeighbourIndex<const D: usize>: Sync + Send {
 }
 
 /// Which index the filter runs on.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum IndexKind {
     /// Uniform grid over the image (and time) axes with an exact ring search.
     Grid,
     /// kiddo's mutable k-d tree, searched exactly in f64.
     Kdtree,
+}
+
+impl std::fmt::Display for IndexKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str(match self {
+            IndexKind::Grid => "grid",
+            IndexKind::Kdtree => "kdtree",
+        })
+    }
+}
+
+impl std::str::FromStr for IndexKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<IndexKind, String> {
+        match s {
+            "grid" => Ok(IndexKind::Grid),
+            "kdtree" => Ok(IndexKind::Kdtree),
+            _ => Err(format!("unknown index {s:?} (grid or kdtree)")),
+        }
+    }
 }
 
 /// Offers `arena[first_new..]` to `kb`: the brute-force completion.

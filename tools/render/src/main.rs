@@ -6,12 +6,15 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::{Parser, ValueEnum};
-use pathdensity::commands::progress_bar;
 use pathdensity::dump::Order;
 use pathdensity::io::exr;
 use pathdensity::recon::ReconFilter;
 use pathdensity_render::sampler::independent_seed;
 use pathdensity_render::{RenderSettings, SceneName, render_dump, render_reference};
+
+#[path = "../../../src/bar.rs"]
+mod bar;
+use bar::Bar;
 
 #[derive(Clone, Copy, ValueEnum)]
 enum OrderArg {
@@ -79,7 +82,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         seed: cli.seed,
     };
     let t = Instant::now();
-    let h = pool.install(|| render_dump(&scene, &st, &cli.out, &progress_bar(0, "render")))?;
+    let h = pool.install(|| render_dump(&scene, &st, &cli.out, &Bar::new("render")))?;
     let secs = t.elapsed().as_secs_f64();
     println!(
         "{}: {} {}×{}×{} at {} spp, {} samples in {:.2} s ({:.2} M samples/s)",
@@ -102,7 +105,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         };
         let t = Instant::now();
         let img =
-            pool.install(|| render_reference(&scene, &st, filter, &progress_bar(0, "reference")))?;
+            pool.install(|| render_reference(&scene, &st, filter, &Bar::new("reference")))?;
         let dir = path.parent().unwrap_or(std::path::Path::new("."));
         let stem = path
             .file_stem()

@@ -7,8 +7,8 @@
 use std::path::Path;
 
 use anyhow::{Result, bail};
-use indicatif::ProgressBar;
 use pathdensity::dump::{Header, Order, PresizedDump, Record};
+use pathdensity::progress::Progress;
 use pathdensity::recon::{Film, Image, ReconFilter};
 use rayon::prelude::*;
 
@@ -92,7 +92,7 @@ pub fn render_dump(
     scene: &Scene,
     st: &RenderSettings,
     path: &Path,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> Result<Header> {
     st.check()?;
     let header = st.header(scene);
@@ -122,7 +122,7 @@ pub fn render_dump(
             }
             progress.inc(1);
         });
-    progress.finish_and_clear();
+    progress.finish();
     dump.finish()?;
     Ok(header)
 }
@@ -135,7 +135,7 @@ pub fn render_reference(
     scene: &Scene,
     st: &RenderSettings,
     filter: ReconFilter,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> Result<Image> {
     st.check()?;
     let header = st.header(scene);
@@ -169,6 +169,6 @@ pub fn render_reference(
             }
         }
     }
-    progress.finish_and_clear();
+    progress.finish();
     Ok(film.resolve(&occupancy))
 }

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use indicatif::ProgressBar;
+use pathdensity::progress::Silent;
 use pathdensity::commands::filter::{FilterOptions, filter};
 use pathdensity::dump::{DumpReader, Order, Record, Validity};
 use pathdensity::io::exr;
@@ -36,7 +36,7 @@ fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
 fn render(scene: SceneName, st: &RenderSettings, path: &Path, threads: usize) {
     let s = scene.build(st.frames);
     in_pool(threads, || {
-        render_dump(&s, st, path, &ProgressBar::hidden())
+        render_dump(&s, st, path, &Silent)
     })
     .unwrap();
 }
@@ -48,7 +48,7 @@ fn reference(scene: SceneName, size: u32, spp: u32) -> Image {
         &scene.build(1),
         &st,
         ReconFilter::Box,
-        &ProgressBar::hidden(),
+        &Silent,
     )
     .unwrap()
 }
@@ -113,10 +113,9 @@ fn dump_and_reference_bytes_do_not_depend_on_the_thread_count() {
     }
     let scene = SceneName::GlossyRoom.build(1);
     let st = settings(16, 32, Order::PixelMajor);
-    let hidden = ProgressBar::hidden;
     let gauss = ReconFilter::gaussian();
-    let r1 = in_pool(1, || render_reference(&scene, &st, gauss, &hidden()));
-    let r2 = in_pool(2, || render_reference(&scene, &st, gauss, &hidden()));
+    let r1 = in_pool(1, || render_reference(&scene, &st, gauss, &Silent));
+    let r2 = in_pool(2, || render_reference(&scene, &st, gauss, &Silent));
     assert_eq!(r1.unwrap(), r2.unwrap());
 }
 

@@ -6,12 +6,16 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::Parser;
-use pathdensity::commands::{filter, progress_bar};
+use pathdensity::commands::filter;
 use pathdensity::dump::Order;
 use pathdensity::io::exr;
 use pathdensity::recon::ReconFilter;
 use pathdensity_render::sampler::independent_seed;
 use pathdensity_render::{RenderSettings, SceneName, render_dump, render_reference};
+
+#[path = "../../../../src/bar.rs"]
+mod bar;
+use bar::Bar;
 
 /// Render a scene, its reference, and filter it.
 #[derive(Parser)]
@@ -47,7 +51,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     };
     let dump = cli.out.join(format!("{name}.pds"));
     let t = Instant::now();
-    render_dump(&scene, &st, &dump, &progress_bar(0, "render"))?;
+    render_dump(&scene, &st, &dump, &Bar::new("render"))?;
     println!(
         "rendered {} ({}×{}, {} spp) in {:.2} s",
         dump.display(),
@@ -59,7 +63,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     st.spp = cli.reference_spp;
     st.seed = independent_seed(cli.seed);
     let t = Instant::now();
-    let reference = render_reference(&scene, &st, ReconFilter::Box, &progress_bar(0, "reference"))?;
+    let reference = render_reference(&scene, &st, ReconFilter::Box, &Bar::new("reference"))?;
     let ref_name = format!("{name}_ref");
     let written = exr::write_image(&cli.out, &ref_name, &reference)?;
     println!(
@@ -69,7 +73,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     );
     let mut opts = filter::FilterOptions::new(&dump, cli.out.join("filtered"));
     opts.reference = Some(cli.out.join(&written[0]));
-    let report = filter::filter(&opts)?;
+    let report = filter::filter_with_progress(&opts, &Bar::new("filter"))?;
     print!("{}", report.summary());
     Ok(())
 }

@@ -1,0 +1,279 @@
+//! The one configuration of a run: every parameter of the filter, its
+//! reconstruction and the methods it is compared with, with its defaults
+//! defined once ([`FilterConfig::DEFAULT`]) and checked in one place
+//! ([`FilterConfig::validate`]).
+//!
+//! The command line fills it (each flag is a field, `--sigma-color` is
+//! `sigma_color`), fixture manifests embed it, `report.json` records it and
+//! sweeps vary its fields. In JSON every field is optional and defaults as
+//! below; an unknown field is an error.
+//!
+//! ```
+//! use pathdensity::config::{FilterConfig, White};
+//! let c: FilterConfig = serde_json::from_str(r#"{"k": 20, "white": "auto"}"#).unwrap();
+//! assert_eq!(c.k, 20);
+//! assert_eq!(c.white, White::Auto);
+//! assert_eq!(c.sigma_color, FilterConfig::DEFAULT.sigma_color);
+//! assert!(c.validate().is_ok());
+//! ```
+
+use serde::{Deserialize, Serialize};
+
+use crate::density::IndexKind;
+pub use crate::joint::white::White;
+use crate::joint::JointSpace;
+use crate::imagespace::bilateral::BilateralParams;
+pub use crate::pipeline::methods::{Method, MethodSet};
+use crate::recon::ReconFilter;
+use crate::recon::rwmc::RwmcParams;
+
+/// The reconstruction filter W by name (docs/filter.md, "Reconstruction").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Recon {
+    /// A sample counts for the pixel that contains it.
+    Box,
+    /// A Gaussian of s = 0.5 px truncated at 1.5 px.
+    Gaussian,
+}
+
+impl std::str::FromStr for Recon {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Recon, String> {
+        match s {
+            "box" => Ok(Recon::Box),
+            "gaussian" => Ok(Recon::Gaussian),
+            _ => Err(format!("unknown reconstruction filter {s:?} (box or gaussian)")),
+        }
+    }
+}
+
+impl std::fmt::Display for Recon {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str(match self {
+            Recon::Box => "box",
+            Recon::Gaussian => "gaussian",
+        })
+    }
+}
+
+impl Recon {
+    pub fn filter(self) -> ReconFilter {
+        match self {
+            Recon::Box => ReconFilter::Box,
+            Recon::Gaussian => ReconFilter::gaussian(),
+        }
+    }
+}
+
+/// Every parameter of a run. See the module documentation.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FilterConfig {
+    /// Neighbours whose mean distance is σ (the paper's k).
+    pub k: usize,
+    /// Image-axis scale of the joint space, in pixels.
+    pub sigma_image: f64,
+    /// Colour-axis scale of the joint space, in CIELAB units.
+    pub sigma_color: f64,
+    /// Time-axis scale of the joint space, in frames.
+    pub sigma_time: f64,
+    /// Luminance that maps to L* = 100, or `auto`.
+    pub white: White,
+    pub recon: Recon,
+    /// The neighbour index (results do not depend on it).
+    pub index: IndexKind,
+    /// The images to make; mean and filtered are always made.
+    pub methods: MethodSet,
+    /// α of the trimmed mean: ⌊α n⌋ samples dropped at each end.
+    pub alpha: f64,
+    /// Spatial σ of the bilateral filter, in pixels.
+    pub bilateral_sigma_s: f64,
+    /// Range σ of the bilateral filter, in CIELAB ΔE.
+    pub bilateral_sigma_r: f64,
+    /// Groups of the median of means (mon, gmon).
+    pub mon_groups: usize,
+    /// rwmc: number of cascades S.
+    pub rwmc_cascades: usize,
+    /// rwmc: luminance s₀ where the second cascade starts.
+    pub rwmc_start: f64,
+    /// rwmc: ratio b between cascades.
+    pub rwmc_base: f64,
+    /// rwmc: κ, samples a bright feature needs to be trusted.
+    pub rwmc_kappa: f64,
+    /// rwmc: luminance always considered reliable.
+    pub rwmc_min_luminance: f64,
+    /// filtered_energy: σ (pixels) of the spread of the removed energy.
+    pub energy_sigma: f64,
+    /// Exposure of the display transform (RMS_display, previews).
+    pub exposure: f64,
+}
+
+impl FilterConfig {
+    /// The paper's filter parameters (k = 10, σ_image = 3, σ_color = 100,
+    /// σ_time = 2, white 1), every method, the methods' authors' defaults.
+    pub const DEFAULT: FilterConfig = FilterConfig {
+        k: 10,
+        sigma_image: 3.0,
+        sigma_color: 100.0,
+        sigma_time: 2.0,
+        white: White::Fixed(1.0),
+        recon: Recon::Box,
+        index: IndexKind::Grid,
+        methods: MethodSet::ALL,
+        alpha: 0.1,
+        bilateral_sigma_s: 2.0,
+        bilateral_sigma_r: 20.0,
+        mon_groups: 11,
+        rwmc_cascades: 6,
+        rwmc_start: 1.0,
+        rwmc_base: 8.0,
+        rwmc_kappa: 32.0,
+        rwmc_min_luminance: 0.05,
+        energy_sigma: 8.0,
+        exposure: 1.0,
+    };
+
+    /// Checks every field; the error names the first bad one.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let bad = |field: &'static str, problem: String| Err(ConfigError { field, problem });
+        let positive = |v: f64| v > 0.0 && v.is_finite();
+        if self.k == 0 {
+            return bad("k", "must be at least 1".into());
+        }
+        for (field, v) in [
+            ("sigma_image", self.sigma_image),
+            ("sigma_color", self.sigma_color),
+            ("sigma_time", self.sigma_time),
+            ("exposure", self.exposure),
+            ("bilateral_sigma_s", self.bilateral_sigma_s),
+            ("bilateral_sigma_r", self.bilateral_sigma_r),
+            ("rwmc_start", self.rwmc_start),
+            ("rwmc_kappa", self.rwmc_kappa),
+        ] {
+            if !positive(v) {
+                return bad(field, format!("must be a positive finite number, got {v}"));
+            }
+        }
+        if let White::Fixed(v) = self.white
+            && !positive(v)
+        {
+            return bad("white", format!("must be `auto` or a positive number, got {v}"));
+        }
+        if !(0.0..0.5).contains(&self.alpha) {
+            return bad("alpha", format!("must lie in [0, 0.5), got {}", self.alpha));
+        }
+        if self.bilateral_sigma_s > 1000.0 {
+            return bad("bilateral_sigma_s", "is above 1000 pixels".into());
+        }
+        if self.mon_groups == 0 {
+            return bad("mon_groups", "must be at least 1".into());
+        }
+        if !(2..=32).contains(&self.rwmc_cascades) {
+            return bad(
+                "rwmc_cascades",
+                format!("must be in 2..=32, got {}", self.rwmc_cascades),
+            );
+        }
+        if !(positive(self.rwmc_base) && self.rwmc_base > 1.0) {
+            return bad("rwmc_base", format!("must be above 1, got {}", self.rwmc_base));
+        }
+        if !(self.rwmc_min_luminance.is_finite() && self.rwmc_min_luminance >= 0.0) {
+            return bad(
+                "rwmc_min_luminance",
+                format!("must be finite and ≥ 0, got {}", self.rwmc_min_luminance),
+            );
+        }
+        if !(self.energy_sigma > 0.0 && self.energy_sigma <= 1e4) {
+            return bad(
+                "energy_sigma",
+                format!("must lie in (0, 10000] pixels, got {}", self.energy_sigma),
+            );
+        }
+        Ok(())
+    }
+
+    /// The joint space with the resolved white luminance `white`.
+    pub fn space(&self, white: f64) -> JointSpace {
+        JointSpace {
+            sigma_image: self.sigma_image,
+            sigma_color: self.sigma_color,
+            sigma_time: self.sigma_time,
+            white,
+        }
+    }
+
+    pub fn bilateral(&self) -> BilateralParams {
+        BilateralParams {
+            sigma_s: self.bilateral_sigma_s,
+            sigma_r: self.bilateral_sigma_r,
+        }
+    }
+
+    pub fn rwmc(&self) -> RwmcParams {
+        RwmcParams {
+            cascades: self.rwmc_cascades,
+            start: self.rwmc_start,
+            base: self.rwmc_base,
+            kappa: self.rwmc_kappa,
+            min_luminance: self.rwmc_min_luminance,
+        }
+    }
+}
+
+impl Default for FilterConfig {
+    fn default() -> Self {
+        FilterConfig::DEFAULT
+    }
+}
+
+/// A configuration field with a value it cannot take.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{field} {problem}")]
+pub struct ConfigError {
+    /// The field's name (the command line spells it with dashes).
+    pub field: &'static str,
+    pub problem: String,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid_and_round_trip_through_json() {
+        let c = FilterConfig::DEFAULT;
+        c.validate().unwrap();
+        let json = serde_json::to_string(&c).unwrap();
+        assert_eq!(serde_json::from_str::<FilterConfig>(&json).unwrap(), c);
+        let auto = FilterConfig {
+            white: White::Auto,
+            methods: MethodSet::CORE.with(Method::Rwmc),
+            ..c
+        };
+        let json = serde_json::to_string(&auto).unwrap();
+        assert!(json.contains(r#""white":"auto""#), "{json}");
+        assert!(json.contains(r#""methods":["mean","filtered","rwmc"]"#), "{json}");
+        assert_eq!(serde_json::from_str::<FilterConfig>(&json).unwrap(), auto);
+    }
+
+    #[test]
+    fn errors_name_the_field() {
+        let e = FilterConfig {
+            sigma_color: 0.0,
+            ..FilterConfig::DEFAULT
+        }
+        .validate()
+        .unwrap_err();
+        assert_eq!(e.field, "sigma_color");
+        let e = FilterConfig {
+            alpha: 0.5,
+            ..FilterConfig::DEFAULT
+        }
+        .validate()
+        .unwrap_err();
+        assert_eq!(e.field, "alpha");
+        assert!(serde_json::from_str::<FilterConfig>(r#"{"kk": 3}"#).is_err());
+        assert!(serde_json::from_str::<FilterConfig>(r#"{"white": "bright"}"#).is_err());
+    }
+}

@@ -1,0 +1,159 @@
+//! The method table: how each [`Method`]'s image is made from a dump, the
+//! filter's decisions and a configuration. `filter`, `sweep`, the
+//! equal-time comparison and the regression fixtures all ask it.
+//!
+//! Estimators that share work (the per-pixel grouping behind median,
+//! trimmed, mon and gmon; one pass for median and trimmed, one for mon and
+//! gmon) compute it once, on first use. Each image's time includes the
+//! work it shares with others, so it is the cost of that image alone.
+
+use std::sync::OnceLock;
+use std::time::Instant;
+
+use super::methods::Method;
+use crate::config::FilterConfig;
+use crate::dump::{Header, Record};
+use crate::imagespace;
+use crate::recon::groups::PixelGroups;
+use crate::recon::mon::{self, MonImages};
+use crate::recon::robust::{self, RobustImages};
+use crate::recon::{Image, Reconstruction, energy, rwmc};
+
+/// The mean and filtered images and what the image-space methods need.
+pub struct Core {
+    pub reconstruction: Reconstruction,
+    /// `mean − filtered` ([`energy::removed`]).
+    pub removed: Image,
+    /// Seconds of the pass that made mean and filtered.
+    pub reconstruct_seconds: f64,
+    /// Seconds of the replay that decided which samples are accepted.
+    pub replay_seconds: f64,
+}
+
+impl Core {
+    pub fn new(reconstruction: Reconstruction, reconstruct_seconds: f64, replay_seconds: f64) -> Core {
+        let removed = energy::removed(&reconstruction.mean, &reconstruction.filtered);
+        Core {
+            reconstruction,
+            removed,
+            reconstruct_seconds,
+            replay_seconds,
+        }
+    }
+}
+
+/// Work several estimators share, independent of the configuration.
+pub struct Shared<'a> {
+    records: &'a [Record],
+    header: &'a Header,
+    groups: OnceLock<(PixelGroups<'a>, f64)>,
+}
+
+impl<'a> Shared<'a> {
+    pub fn new(records: &'a [Record], header: &'a Header) -> Shared<'a> {
+        Shared {
+            records,
+            header,
+            groups: OnceLock::new(),
+        }
+    }
+
+    fn groups(&self) -> &(PixelGroups<'a>, f64) {
+        self.groups
+            .get_or_init(|| timed(|| PixelGroups::new(self.records, self.header)))
+    }
+}
+
+/// The estimators of one configuration over one dump.
+pub struct Estimators<'s, 'a> {
+    shared: &'s Shared<'a>,
+    config: &'s FilterConfig,
+    /// The resolved white luminance (the bilateral filter's ΔE uses it).
+    white: f64,
+    core: &'s Core,
+    robust: OnceLock<(RobustImages, f64)>,
+    mon: OnceLock<(MonImages, f64)>,
+}
+
+impl<'s, 'a> Estimators<'s, 'a> {
+    pub fn new(
+        shared: &'s Shared<'a>,
+        config: &'s FilterConfig,
+        white: f64,
+        core: &'s Core,
+    ) -> Estimators<'s, 'a> {
+        Estimators {
+            shared,
+            config,
+            white,
+            core,
+            robust: OnceLock::new(),
+            mon: OnceLock::new(),
+        }
+    }
+
+    /// `method`'s image and the seconds it took from the dump.
+    pub fn image(&self, method: Method) -> (Image, f64) {
+        let (records, h, c) = (self.shared.records, self.shared.header, self.config);
+        let rec = &self.core.reconstruction;
+        let mean_s = self.core.reconstruct_seconds;
+        let filtered_s = self.core.replay_seconds + mean_s;
+        let after = |base: f64, (img, s): (Image, f64)| (img, base + s);
+        match method {
+            Method::Mean => (rec.mean.clone(), mean_s),
+            Method::Filtered => (rec.filtered.clone(), filtered_s),
+            Method::Median => self.robust(|r| &r.median),
+            Method::Trimmed => self.robust(|r| &r.trimmed),
+            Method::Mon => self.mon(|m| &m.mon),
+            Method::Gmon => self.mon(|m| &m.gmon),
+            Method::Bilateral => after(
+                mean_s,
+                timed(|| imagespace::bilateral(&rec.mean, &rec.occupancy, c.bilateral(), self.white)),
+            ),
+            Method::Median3 => after(
+                mean_s,
+                timed(|| imagespace::median3(&rec.mean, &rec.occupancy)),
+            ),
+            Method::FilteredBilateral => after(
+                filtered_s,
+                timed(|| {
+                    imagespace::bilateral(&rec.filtered, &rec.occupancy, c.bilateral(), self.white)
+                }),
+            ),
+            Method::Rwmc => timed(|| rwmc::rwmc(records, h, &c.rwmc())),
+            Method::FilteredEnergy => after(
+                filtered_s,
+                timed(|| {
+                    energy::energy_aware(
+                        &rec.filtered,
+                        &self.core.removed,
+                        &rec.occupancy,
+                        c.energy_sigma,
+                    )
+                }),
+            ),
+        }
+    }
+
+    fn robust(&self, pick: impl Fn(&RobustImages) -> &Image) -> (Image, f64) {
+        let (groups, group_s) = self.shared.groups();
+        let (r, s) = self.robust.get_or_init(|| {
+            timed(|| robust::robust_images(groups, self.shared.header, self.config.alpha))
+        });
+        (pick(r).clone(), group_s + s)
+    }
+
+    fn mon(&self, pick: impl Fn(&MonImages) -> &Image) -> (Image, f64) {
+        let (groups, group_s) = self.shared.groups();
+        let (m, s) = self.mon.get_or_init(|| {
+            timed(|| mon::mon_images(groups, self.shared.header, self.config.mon_groups))
+        });
+        (pick(m).clone(), group_s + s)
+    }
+}
+
+fn timed<T>(f: impl FnOnce() -> T) -> (T, f64) {
+    let t = Instant::now();
+    let v = f();
+    (v, t.elapsed().as_secs_f64())
+}

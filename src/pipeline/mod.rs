@@ -1,0 +1,191 @@
+//! The pipeline as one library call: a dump's records and a configuration
+//! in, the filter's decisions, one image per method and their metrics out,
+//! with no file I/O. The `filter` command writes what [`run`] returns;
+//! sweeps, the equal-time comparison and the regression fixtures call the
+//! same pieces ([`replay`], [`reconstruct`], [`estimate::Estimators`]).
+
+pub mod estimate;
+pub mod methods;
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use crate::config::{ConfigError, FilterConfig};
+use crate::density::{self, Decision, FilterCounts, FilterResult, ReplayOptions};
+use crate::dump::{Header, Record};
+use crate::metrics::{self, ImageMetrics};
+use crate::progress::Progress;
+use crate::recon::{self, Image};
+use estimate::{Core, Estimators, Shared};
+use methods::Method;
+
+/// Why a run could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    #[error("invalid configuration: {0}")]
+    Config(#[from] ConfigError),
+    #[error("cannot start the worker threads: {0}")]
+    Threads(#[from] rayon::ThreadPoolBuildError),
+}
+
+/// How to run, beyond the configuration: nothing here changes an image.
+pub struct RunOptions<'a> {
+    /// Worker threads; 0 means one per core.
+    pub threads: usize,
+    /// Keep every sample's exact σ (for the σ map; slower).
+    pub exact_sigma: bool,
+    /// Measure every image against this reference.
+    pub reference: Option<&'a Image>,
+    pub progress: &'a dyn Progress,
+}
+
+/// One method's image and the seconds it took from the dump, the passes
+/// it shares with other images included.
+pub struct MethodImage {
+    pub method: Method,
+    pub image: Image,
+    pub seconds: f64,
+}
+
+/// Everything a run produced.
+pub struct Run {
+    /// The configuration as given (`white` may be `auto`).
+    pub config: FilterConfig,
+    /// The white luminance Y_w used.
+    pub white: f64,
+    pub threads: usize,
+    /// One [`Decision`] byte per record, in file order.
+    pub decisions: Vec<u8>,
+    pub counts: FilterCounts,
+    pub fallback_pixels: u64,
+    pub empty_pixels: u64,
+    /// Every image of `config.methods`, in the canonical order.
+    pub images: Vec<MethodImage>,
+    /// `mean − filtered`: what the filter took out.
+    pub removed: Image,
+    /// Per pixel the mean exact σ of its samples (with `exact_sigma`).
+    pub sigma_image: Option<Image>,
+    /// Per method name, against the reference (empty without one).
+    pub metrics: BTreeMap<String, ImageMetrics>,
+    pub streaming_seconds: f64,
+    pub final_pass_seconds: f64,
+    /// Reconstruction of every image, the σ map and the metrics.
+    pub reconstruct_seconds: f64,
+}
+
+impl Run {
+    pub fn image(&self, m: Method) -> Option<&Image> {
+        self.images.iter().find(|e| e.method == m).map(|e| &e.image)
+    }
+}
+
+/// A thread pool of `threads` workers (0: one per core).
+pub fn thread_pool(threads: usize) -> Result<rayon::ThreadPool, PipelineError> {
+    Ok(rayon::ThreadPoolBuilder::new().num_threads(threads).build()?)
+}
+
+/// The white luminance `config` asks for on these records.
+pub fn resolve_white(config: &FilterConfig, records: &[Record], header: &Header) -> f64 {
+    config.white.resolve(records, header)
+}
+
+/// The path-density filter's replay (docs/filter.md) at white `white`, on
+/// the current rayon pool.
+pub fn replay(
+    records: &[Record],
+    header: &Header,
+    config: &FilterConfig,
+    white: f64,
+    exact_sigma: bool,
+    progress: &dyn Progress,
+) -> FilterResult {
+    let options = ReplayOptions {
+        exact_sigma,
+        ..ReplayOptions::default()
+    };
+    density::run(records, header, &config.space(white), config.k, config.index, &options, progress)
+}
+
+/// The mean of every valid sample and the filtered image of those
+/// `accepted(i)` says are accepted; `replay_seconds` is what deciding
+/// them cost.
+pub fn reconstruct(
+    records: &[Record],
+    header: &Header,
+    config: &FilterConfig,
+    accepted: impl Fn(usize) -> bool,
+    replay_seconds: f64,
+) -> Core {
+    let t = Instant::now();
+    let rec = recon::reconstruct(records, header, config.recon.filter(), accepted);
+    Core::new(rec, t.elapsed().as_secs_f64(), replay_seconds)
+}
+
+/// Runs the whole pipeline on `records`.
+pub fn run(
+    records: &[Record],
+    header: &Header,
+    config: &FilterConfig,
+    options: &RunOptions,
+) -> Result<Run, PipelineError> {
+    config.validate()?;
+    let pool = thread_pool(options.threads)?;
+    let white = resolve_white(config, records, header);
+    let result = pool.install(|| {
+        replay(records, header, config, white, options.exact_sigma, options.progress)
+    });
+    options.progress.finish();
+    let t = Instant::now();
+    let replay_seconds = result.streaming_seconds + result.final_seconds;
+    let accepted = |i: usize| Decision::accepted(result.decisions[i]);
+    let core = reconstruct(records, header, config, accepted, replay_seconds);
+    let shared = Shared::new(records, header);
+    let estimators = Estimators::new(&shared, config, white, &core);
+    let images: Vec<MethodImage> = pool.install(|| {
+        config
+            .methods
+            .iter()
+            .map(|method| {
+                let (image, seconds) = estimators.image(method);
+                MethodImage {
+                    method,
+                    image,
+                    seconds,
+                }
+            })
+            .collect()
+    });
+    let sigma_image = result
+        .sigma
+        .as_ref()
+        .map(|s| recon::sigma_map(records, header, s));
+    let metrics = match options.reference {
+        Some(r) => images
+            .iter()
+            .map(|e| {
+                let m = metrics::compare(&e.image, r, config.exposure);
+                (e.method.name().to_string(), m)
+            })
+            .collect(),
+        None => BTreeMap::new(),
+    };
+    let rec = &core.reconstruction;
+    let (fallback_pixels, empty_pixels) = (rec.fallback_pixels, rec.empty_pixels);
+    drop(estimators);
+    Ok(Run {
+        config: *config,
+        white,
+        threads: pool.current_num_threads(),
+        decisions: result.decisions,
+        counts: result.counts,
+        fallback_pixels,
+        empty_pixels,
+        images,
+        removed: core.removed,
+        sigma_image,
+        metrics,
+        streaming_seconds: result.streaming_seconds,
+        final_pass_seconds: result.final_seconds,
+        reconstruct_seconds: t.elapsed().as_secs_f64(),
+    })
+}

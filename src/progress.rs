@@ -1,0 +1,17 @@
+//! Progress of long work, reported from the library to whoever shows it
+//! (the binaries draw a bar on a terminal; tests and batch runs pass
+//! [`Silent`]).
+
+/// Receives the progress of one piece of work: its length once known, then
+/// increments. Called from worker threads.
+pub trait Progress: Sync {
+    fn set_length(&self, _len: u64) {}
+    fn inc(&self, _n: u64) {}
+    /// The work is done (a bar clears itself).
+    fn finish(&self) {}
+}
+
+/// Reports nothing.
+pub struct Silent;
+
+impl Progress for Silent {}

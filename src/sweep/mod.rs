@@ -1,0 +1,308 @@
+//! Parameter sweeps: the path-density filter over every combination of k,
+//! σ_color, σ_image and white of one dump, measured against a reference,
+//! with the baselines run once as reference points. The dump is mapped
+//! once; each configuration replays it through the pipeline's pieces.
+
+pub mod equal_time;
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+
+use crate::config::{FilterConfig, Method, White};
+use crate::dump::{DumpReader, Header, Record};
+use crate::io::exr;
+use crate::metrics::{self, Metrics};
+use crate::pipeline::estimate::{Estimators, Shared};
+use crate::pipeline::{self, thread_pool};
+use crate::progress::Progress;
+use crate::recon::Image;
+
+pub use equal_time::{EqualTimeRow, equal_time, equal_time_csv};
+
+#[derive(Clone, Debug)]
+pub struct SweepOptions {
+    pub dump: PathBuf,
+    pub reference: PathBuf,
+    pub out_dir: PathBuf,
+    /// Every field the lists below do not vary (σ_time, recon, exposure,
+    /// the baselines' parameters).
+    pub config: FilterConfig,
+    pub ks: Vec<usize>,
+    pub sigma_colors: Vec<f64>,
+    pub sigma_images: Vec<f64>,
+    pub whites: Vec<White>,
+    /// Worker threads; 0 means one per core.
+    pub threads: usize,
+    /// Group counts of the median-of-means baselines (mon, gmon).
+    pub mon_groups: Vec<usize>,
+    /// κ values of the rwmc baseline.
+    pub rwmc_kappas: Vec<f64>,
+}
+
+impl SweepOptions {
+    /// The default grid: k 5…200, σ_color 25…400, σ_image 1.5…6, white 1.
+    pub fn new(
+        dump: impl Into<PathBuf>,
+        reference: impl Into<PathBuf>,
+        out: impl Into<PathBuf>,
+    ) -> Self {
+        let d = FilterConfig::DEFAULT;
+        SweepOptions {
+            dump: dump.into(),
+            reference: reference.into(),
+            out_dir: out.into(),
+            config: d,
+            ks: vec![5, 10, 20, 50, 200],
+            sigma_colors: vec![25.0, 50.0, 100.0, 200.0, 400.0],
+            sigma_images: vec![1.5, 3.0, 6.0],
+            whites: vec![d.white],
+            threads: 0,
+            mon_groups: vec![d.mon_groups],
+            rwmc_kappas: vec![d.rwmc_kappa],
+        }
+    }
+
+    /// The base configuration with each peer value swept, checked:
+    /// one per mon/gmon group count, one per rwmc κ.
+    fn peer_configs(&self) -> Result<(Vec<FilterConfig>, Vec<FilterConfig>)> {
+        if self.mon_groups.is_empty() || self.rwmc_kappas.is_empty() {
+            bail!("mon_groups and rwmc_kappa need one or more values");
+        }
+        let checked = |c: FilterConfig| c.validate().map(|_| c);
+        let mon = self
+            .mon_groups
+            .iter()
+            .map(|&mon_groups| checked(FilterConfig { mon_groups, ..self.config }))
+            .collect::<Result<_, _>>()?;
+        let rwmc = self
+            .rwmc_kappas
+            .iter()
+            .map(|&rwmc_kappa| checked(FilterConfig { rwmc_kappa, ..self.config }))
+            .collect::<Result<_, _>>()?;
+        Ok((mon, rwmc))
+    }
+}
+
+/// One configuration's outcome.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Row {
+    pub k: usize,
+    pub sigma_color: f64,
+    pub sigma_image: f64,
+    /// As given (`1`, `auto`).
+    pub white: String,
+    /// The Y_w used.
+    pub white_value: f64,
+    /// Why the configuration did not run, if it did not.
+    pub failure: Option<String>,
+    /// Filter plus reconstruction wall time.
+    pub seconds: f64,
+    pub stored: u64,
+    pub accepted_fraction: f64,
+    pub fallback_pixels: u64,
+    pub metrics: Option<Metrics>,
+}
+
+/// A baseline measured once.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Baseline {
+    pub method: String,
+    pub seconds: f64,
+    pub metrics: Metrics,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Sweep {
+    pub dump: String,
+    pub reference: String,
+    pub header: Header,
+    pub threads: usize,
+    pub rows: Vec<Row>,
+    pub baselines: Vec<Baseline>,
+}
+
+/// Every configuration of the grid, in nested order (white outermost, k
+/// innermost).
+fn grid(o: &SweepOptions) -> Vec<FilterConfig> {
+    let mut v = Vec::new();
+    for &white in &o.whites {
+        for &sigma_image in &o.sigma_images {
+            for &sigma_color in &o.sigma_colors {
+                for &k in &o.ks {
+                    v.push(FilterConfig {
+                        k,
+                        sigma_color,
+                        sigma_image,
+                        white,
+                        ..o.config
+                    });
+                }
+            }
+        }
+    }
+    v
+}
+
+pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
+    if o.ks.is_empty()
+        || o.sigma_colors.is_empty()
+        || o.sigma_images.is_empty()
+        || o.whites.is_empty()
+    {
+        bail!("every swept list needs at least one value");
+    }
+    o.config.validate()?;
+    let (mon_configs, rwmc_configs) = o.peer_configs()?;
+    let dump = DumpReader::open(&o.dump)?;
+    let h = dump.header().clone();
+    let records = dump.records();
+    let reference = exr::read_reference(
+        &o.reference,
+        h.width as usize,
+        h.height as usize,
+        h.frames as usize,
+    )?;
+    std::fs::create_dir_all(&o.out_dir)
+        .with_context(|| format!("{}: cannot create output directory", o.out_dir.display()))?;
+    let pool = thread_pool(o.threads)?;
+
+    // The baselines, once, at the base configuration; the peer methods
+    // once per value of their swept parameter, labelled with it.
+    let compare = |img: &Image| metrics::compare(img, &reference, o.config.exposure).pooled;
+    let shared = Shared::new(records, &h);
+    let (baselines, valid) = pool.install(|| {
+        let base = &o.config;
+        let white = pipeline::resolve_white(base, records, &h);
+        let core = pipeline::reconstruct(records, &h, base, |_| true, 0.0);
+        let valid: u64 = core.reconstruction.occupancy.iter().map(|&n| n as u64).sum();
+        let mut baselines = Vec::new();
+        let mut add = |c: &FilterConfig, method: Method, label: String| {
+            let (img, seconds) = Estimators::new(&shared, c, white, &core).image(method);
+            baselines.push(Baseline {
+                method: label,
+                seconds,
+                metrics: compare(&img),
+            });
+        };
+        for m in [Method::Mean, Method::Median, Method::Trimmed, Method::Bilateral] {
+            add(base, m, m.name().to_string());
+        }
+        for c in &mon_configs {
+            for m in [Method::Mon, Method::Gmon] {
+                add(c, m, format!("{m} groups={}", c.mon_groups));
+            }
+        }
+        for c in &rwmc_configs {
+            add(c, Method::Rwmc, format!("rwmc kappa={}", c.rwmc_kappa));
+        }
+        (baselines, valid)
+    });
+
+    let configs = grid(o);
+    progress.set_length(configs.len() as u64);
+    let mut whites: Vec<(White, f64)> = Vec::new();
+    let mut rows = Vec::new();
+    for config in configs {
+        let white_value = match whites.iter().find(|e| e.0 == config.white) {
+            Some(e) => e.1,
+            None => {
+                let v = pipeline::resolve_white(&config, records, &h);
+                whites.push((config.white, v));
+                v
+            }
+        };
+        let row = pool.install(|| configuration(records, &h, &config, white_value, &reference, valid));
+        rows.push(row);
+        progress.inc(1);
+    }
+    progress.finish();
+    Ok(Sweep {
+        dump: o.dump.display().to_string(),
+        reference: o.reference.display().to_string(),
+        header: h,
+        threads: pool.current_num_threads(),
+        rows,
+        baselines,
+    })
+}
+
+/// Runs one configuration; a configuration that cannot run is a row with
+/// its reason.
+fn configuration(
+    records: &[Record],
+    h: &Header,
+    config: &FilterConfig,
+    white_value: f64,
+    reference: &Image,
+    valid: u64,
+) -> Row {
+    let mut row = Row {
+        k: config.k,
+        sigma_color: config.sigma_color,
+        sigma_image: config.sigma_image,
+        white: config.white.to_string(),
+        white_value,
+        failure: None,
+        seconds: 0.0,
+        stored: 0,
+        accepted_fraction: 0.0,
+        fallback_pixels: 0,
+        metrics: None,
+    };
+    if config.k > 0 && config.k as u64 >= valid {
+        row.failure = Some(format!(
+            "k = {} needs more than {valid} valid samples: every sample would be rejected",
+            config.k
+        ));
+        return row;
+    }
+    if let Err(e) = config.validate() {
+        row.failure = Some(e.to_string());
+        return row;
+    }
+    let t = Instant::now();
+    let result = pipeline::replay(records, h, config, white_value, false, &crate::progress::Silent);
+    let core = pipeline::reconstruct(records, h, config, |i| {
+        crate::density::Decision::accepted(result.decisions[i])
+    }, 0.0);
+    row.seconds = t.elapsed().as_secs_f64();
+    let c = &result.counts;
+    row.stored = c.stored;
+    row.accepted_fraction =
+        (c.accepted_streaming + c.accepted_final) as f64 / c.valid.max(1) as f64;
+    row.fallback_pixels = core.reconstruction.fallback_pixels;
+    row.metrics = Some(metrics::compare(&core.reconstruction.filtered, reference, config.exposure).pooled);
+    row
+}
+
+impl Sweep {
+    pub(crate) fn ok_rows(&self) -> impl Iterator<Item = (&Row, &Metrics)> {
+        self.rows
+            .iter()
+            .filter_map(|r| r.metrics.as_ref().map(|m| (r, m)))
+    }
+
+    /// Indices of the configurations on the time–RMS Pareto front: no
+    /// other configuration is both faster (or as fast) and more accurate.
+    pub fn pareto(&self) -> Vec<usize> {
+        let ok: Vec<(usize, f64, f64)> = self
+            .rows
+            .iter()
+            .enumerate()
+            .filter_map(|(i, r)| r.metrics.map(|m| (i, r.seconds, m.rms)))
+            .collect();
+        let mut front: Vec<usize> = ok
+            .iter()
+            .filter(|&&(i, t, e)| {
+                !ok.iter()
+                    .any(|&(j, t2, e2)| j != i && t2 <= t && e2 <= e && (t2 < t || e2 < e))
+            })
+            .map(|e| e.0)
+            .collect();
+        front.sort_by(|&a, &b| self.rows[a].seconds.total_cmp(&self.rows[b].seconds));
+        front
+    }
+
+}
