@@ -12,9 +12,10 @@
 
 use std::time::Instant;
 
-use indicatif::ProgressBar;
-use pathdensity::density::{self, FilterParams, IndexKind};
+use pathdensity::density::{self, IndexKind, ReplayOptions};
 use pathdensity::dump::{DumpReader, Order};
+use pathdensity::joint::JointSpace;
+use pathdensity::progress::Silent;
 use pathdensity::recon::{self, ReconFilter};
 use pathdensity::synth::SynthParams;
 
@@ -92,11 +93,7 @@ fn main() {
                             .unwrap()
                     })
                     .collect();
-                let params = FilterParams {
-                    k,
-                    index,
-                    ..FilterParams::default()
-                };
+                let (space, options) = (JointSpace::default(), ReplayOptions::default());
                 let reps = if index == IndexKind::Kdtree { 1 } else { runs };
                 // On the grid with both thread counts, a third contender:
                 // two 1-thread replays at once, the machine's own 1 → 2
@@ -111,7 +108,7 @@ fn main() {
                 let mut times = vec![Vec::new(); contenders];
                 let mut stored = 0;
                 let replay = |pool: &rayon::ThreadPool| {
-                    pool.install(|| density::run(recs, &h, &params, &ProgressBar::hidden()))
+                    pool.install(|| density::run(recs, &h, &space, k, index, &options, &Silent))
                         .counts
                         .stored
                 };

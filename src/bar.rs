@@ -10,7 +10,10 @@ pub struct Bar(ProgressBar);
 impl Bar {
     pub fn new(what: &str) -> Bar {
         if !std::io::stderr().is_terminal() {
-            return Bar(ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden()));
+            return Bar(ProgressBar::with_draw_target(
+                None,
+                ProgressDrawTarget::hidden(),
+            ));
         }
         let pb = ProgressBar::new(0);
         pb.set_style(

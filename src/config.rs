@@ -20,9 +20,9 @@
 use serde::{Deserialize, Serialize};
 
 use crate::density::IndexKind;
-pub use crate::joint::white::White;
-use crate::joint::JointSpace;
 use crate::imagespace::bilateral::BilateralParams;
+use crate::joint::JointSpace;
+pub use crate::joint::white::White;
 pub use crate::pipeline::methods::{Method, MethodSet};
 use crate::recon::ReconFilter;
 use crate::recon::rwmc::RwmcParams;
@@ -43,7 +43,9 @@ impl std::str::FromStr for Recon {
         match s {
             "box" => Ok(Recon::Box),
             "gaussian" => Ok(Recon::Gaussian),
-            _ => Err(format!("unknown reconstruction filter {s:?} (box or gaussian)")),
+            _ => Err(format!(
+                "unknown reconstruction filter {s:?} (box or gaussian)"
+            )),
         }
     }
 }
@@ -158,7 +160,10 @@ impl FilterConfig {
         if let White::Fixed(v) = self.white
             && !positive(v)
         {
-            return bad("white", format!("must be `auto` or a positive number, got {v}"));
+            return bad(
+                "white",
+                format!("must be `auto` or a positive number, got {v}"),
+            );
         }
         if !(0.0..0.5).contains(&self.alpha) {
             return bad("alpha", format!("must lie in [0, 0.5), got {}", self.alpha));
@@ -176,7 +181,10 @@ impl FilterConfig {
             );
         }
         if !(positive(self.rwmc_base) && self.rwmc_base > 1.0) {
-            return bad("rwmc_base", format!("must be above 1, got {}", self.rwmc_base));
+            return bad(
+                "rwmc_base",
+                format!("must be above 1, got {}", self.rwmc_base),
+            );
         }
         if !(self.rwmc_min_luminance.is_finite() && self.rwmc_min_luminance >= 0.0) {
             return bad(
@@ -253,7 +261,10 @@ mod tests {
         };
         let json = serde_json::to_string(&auto).unwrap();
         assert!(json.contains(r#""white":"auto""#), "{json}");
-        assert!(json.contains(r#""methods":["mean","filtered","rwmc"]"#), "{json}");
+        assert!(
+            json.contains(r#""methods":["mean","filtered","rwmc"]"#),
+            "{json}"
+        );
         assert_eq!(serde_json::from_str::<FilterConfig>(&json).unwrap(), auto);
     }
 

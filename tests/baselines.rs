@@ -6,16 +6,18 @@ mod common;
 
 use common::*;
 use pathdensity::commands::filter::{FilterOptions, filter};
+use pathdensity::config::Method;
 use pathdensity::dump::Record;
 use pathdensity::io::exr::read_rgb;
-use pathdensity::methods::Method;
 use pathdensity::synth::SynthParams;
 
 fn run(dump: &std::path::Path, out: &std::path::Path, alpha: f64) {
     let mut o = FilterOptions::new(dump, out);
-    o.alpha = alpha;
+    o.config.alpha = alpha;
     o.html = false;
-    o.methods = vec![Method::Median, Method::Trimmed, Method::Median3];
+    o.config.methods = [Method::Median, Method::Trimmed, Method::Median3]
+        .into_iter()
+        .collect();
     filter(&o).unwrap();
 }
 
@@ -100,11 +102,12 @@ fn bad_baseline_parameters_are_refused() {
     let dump = write_dump(dir.path(), "d.pds", &header(1, 1, 1), &[]);
     for alpha in [0.5, -0.1, f64::NAN] {
         let mut o = FilterOptions::new(&dump, dir.path().join("o"));
-        o.alpha = alpha;
+        o.config.alpha = alpha;
         let e = filter(&o).unwrap_err().to_string();
-        assert!(e.contains("--alpha"), "{e}");
+        // The library names the field; the command line spells it --alpha.
+        assert!(e.contains("alpha"), "{e}");
     }
     let mut o = FilterOptions::new(&dump, dir.path().join("o"));
-    o.bilateral.sigma_r = 0.0;
+    o.config.bilateral_sigma_r = 0.0;
     assert!(filter(&o).is_err());
 }

@@ -23,12 +23,17 @@ fn run_ok(args: &[&str]) -> String {
 
 /// Runs a command expected to fail; returns its stderr.
 fn run_err(args: &[&str]) -> String {
+    run_err_code(args).1
+}
+
+/// Runs a command expected to fail; returns its exit code and stderr.
+fn run_err_code(args: &[&str]) -> (Option<i32>, String) {
     let out = bin().args(args).output().unwrap();
     assert!(!out.status.success(), "{args:?} should fail");
     let err = String::from_utf8(out.stderr).unwrap();
     assert!(!err.contains("panicked"), "{err}");
     assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
-    err
+    (out.status.code(), err)
 }
 
 fn files(dir: &Path) -> Vec<String> {
@@ -245,8 +250,9 @@ fn bad_input_is_one_line_naming_the_file_and_leaves_no_files() {
     let out = dir.path().join("out");
     let o = out.to_str().unwrap();
     let missing = dir.path().join("missing.pds");
-    let e = run_err(&["filter", missing.to_str().unwrap(), "-o", o]);
+    let (code, e) = run_err_code(&["filter", missing.to_str().unwrap(), "-o", o]);
     assert!(e.contains("missing.pds"), "{e}");
+    assert_eq!(code, Some(1), "bad input exits 1");
 
     let junk = dir.path().join("junk.pds");
     std::fs::write(&junk, b"PDSDUMP2 and then some bytes").unwrap();
@@ -280,9 +286,10 @@ fn bad_input_is_one_line_naming_the_file_and_leaves_no_files() {
     ]);
     assert!(e.contains("good.pds/out"), "{e}");
 
-    let e = run_err(&["filter", good.to_str().unwrap(), "-o", o, "--k", "0"]);
-    assert!(e.contains("k"), "{e}");
-    let e = run_err(&[
+    let (code, e) = run_err_code(&["filter", good.to_str().unwrap(), "-o", o, "--k", "0"]);
+    assert!(e.contains("--k"), "{e}");
+    assert_eq!(code, Some(2), "an option value refused is a usage error");
+    let (code, e) = run_err_code(&[
         "filter",
         good.to_str().unwrap(),
         "-o",
@@ -291,6 +298,7 @@ fn bad_input_is_one_line_naming_the_file_and_leaves_no_files() {
         "0",
     ]);
     assert!(e.contains("sigma-color"), "{e}");
+    assert_eq!(code, Some(2));
     assert!(files(&out).iter().all(|f| !f.contains(".tmp")));
 }
 

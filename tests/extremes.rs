@@ -10,6 +10,7 @@ use std::path::Path;
 
 use common::*;
 use pathdensity::commands::filter::{FilterOptions, filter};
+use pathdensity::config::White;
 use pathdensity::dump::{Header, Record};
 use pathdensity::io::exr::read_rgb;
 use pathdensity::joint::JointSpace;
@@ -22,8 +23,11 @@ fn run(h: &Header, recs: &[Record], k: usize, space: JointSpace) -> (FilterRepor
     let dump = write_dump(dir.path(), "d.pds", h, recs);
     let out = dir.path().join("out");
     let mut o = FilterOptions::new(&dump, &out);
-    o.params.k = k;
-    o.params.space = space;
+    o.config.k = k;
+    o.config.sigma_image = space.sigma_image;
+    o.config.sigma_color = space.sigma_color;
+    o.config.sigma_time = space.sigma_time;
+    o.config.white = White::Fixed(space.white);
     o.decisions = Some(dir.path().join("dec"));
     let report = filter(&o).unwrap();
     let decisions = std::fs::read(dir.path().join("dec")).unwrap();

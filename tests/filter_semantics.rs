@@ -4,27 +4,38 @@
 mod common;
 
 use common::*;
-use indicatif::ProgressBar;
-use pathdensity::density::{self, FilterParams, IndexKind};
+use pathdensity::density::{self, IndexKind, ReplayOptions};
 use pathdensity::dump::{Order, Record};
 use pathdensity::joint::JointSpace;
+use pathdensity::progress::Silent;
 use pathdensity::synth::SynthParams;
 
 const INDEXES: [IndexKind; 2] = [IndexKind::Grid, IndexKind::Kdtree];
 
-fn params(k: usize, space: JointSpace, index: IndexKind, exact: bool) -> FilterParams {
-    FilterParams {
-        k,
-        space,
-        index,
+/// What one replay runs with.
+struct Params {
+    k: usize,
+    space: JointSpace,
+    index: IndexKind,
+    options: ReplayOptions,
+}
+
+fn params(k: usize, space: JointSpace, index: IndexKind, exact: bool) -> Params {
+    let options = ReplayOptions {
         exact_sigma: exact,
         batch: 300,
         deferral: None,
+    };
+    Params {
+        k,
+        space,
+        index,
+        options,
     }
 }
 
-fn run(recs: &[Record], h: &pathdensity::dump::Header, p: &FilterParams) -> density::FilterResult {
-    density::run(recs, h, p, &ProgressBar::hidden())
+fn run(recs: &[Record], h: &pathdensity::dump::Header, p: &Params) -> density::FilterResult {
+    density::run(recs, h, &p.space, p.k, p.index, &p.options, &Silent)
 }
 
 /// A smooth grey field, `spp` jittered samples per pixel, in pixel-major order.
@@ -384,8 +395,8 @@ fn results_do_not_depend_on_the_thread_count_batch_size_or_deferral() {
             for batch in [256, 5000] {
                 for deferral in [None, Some(0.0), Some(0.5), Some(1.0)] {
                     let mut prm = params(10, JointSpace::default(), IndexKind::Grid, exact);
-                    prm.batch = batch;
-                    prm.deferral = deferral;
+                    prm.options.batch = batch;
+                    prm.options.deferral = deferral;
                     let r = on_threads(threads, || run(&recs, &h, &prm));
                     let bits: Option<Vec<u64>> =
                         r.sigma.map(|s| s.iter().map(|s| s.to_bits()).collect());

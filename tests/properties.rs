@@ -7,11 +7,11 @@
 mod common;
 
 use common::REJECTED;
-use indicatif::ProgressBar;
 use pathdensity::commands::filter::{FilterOptions, filter};
-use pathdensity::density::{self, Decision, FilterParams};
+use pathdensity::density::{self, Decision, IndexKind, ReplayOptions};
 use pathdensity::dump::{Order, Record};
 use pathdensity::joint::JointSpace;
+use pathdensity::progress::Silent;
 use pathdensity::recon::{ReconFilter, reconstruct};
 use pathdensity::synth::SynthParams;
 use proptest::prelude::*;
@@ -60,8 +60,18 @@ fn records(p: &SynthParams) -> Vec<Record> {
     p.records().collect()
 }
 
-fn decide(recs: &[Record], p: &SynthParams, params: &FilterParams) -> Vec<u8> {
-    density::run(recs, &p.header(), params, &ProgressBar::hidden()).decisions
+fn decide(recs: &[Record], p: &SynthParams, k: usize, space: &JointSpace) -> Vec<u8> {
+    let options = ReplayOptions::default();
+    density::run(
+        recs,
+        &p.header(),
+        space,
+        k,
+        IndexKind::Grid,
+        &options,
+        &Silent,
+    )
+    .decisions
 }
 
 proptest! {
@@ -81,9 +91,9 @@ proptest! {
         let run = |threads: usize, index: density::IndexKind, name: &str| {
             let out = dir.path().join(name);
             let mut o = FilterOptions::new(&dump, &out);
-            o.params.k = k;
-            o.params.space.sigma_color = sigma_color;
-            o.params.index = index;
+            o.config.k = k;
+            o.config.sigma_color = sigma_color;
+            o.config.index = index;
             o.threads = threads;
             o.html = false;
             o.sigma_map = true;
@@ -117,11 +127,7 @@ proptest! {
         k in 1usize..16,
         seed in any::<u64>(),
     ) {
-        let params = FilterParams {
-            k,
-            space: JointSpace { sigma_color: 1e9, ..JointSpace::default() },
-            ..FilterParams::default()
-        };
+        let space = JointSpace { sigma_color: 1e9, ..JointSpace::default() };
         let a = records(&p);
         let mut s = seed | 1;
         let mut u = || { s ^= s << 13; s ^= s >> 7; s ^= s << 17; (s >> 40) as f32 / (1u64 << 24) as f32 };
@@ -129,8 +135,8 @@ proptest! {
             .iter()
             .map(|r| Record::new(r.x, r.y, r.t, [1e3 * u(), 20.0 * u(), u()]))
             .collect();
-        let da = decide(&a, &p, &params);
-        prop_assert_eq!(&da, &decide(&b, &p, &params));
+        let da = decide(&a, &p, k, &space);
+        prop_assert_eq!(&da, &decide(&b, &p, k, &space));
         let h = p.header();
         let rec = reconstruct(&b, &h, ReconFilter::Box, |i| Decision::accepted(da[i]));
         let mut lost = vec![false; h.pixels() * h.frames as usize];
@@ -159,13 +165,9 @@ proptest! {
     ) {
         let c = 2f32.powi(n);
         let space = JointSpace { white, ..JointSpace::default() };
-        let params = FilterParams { k, space, ..FilterParams::default() };
-        let scaled_params = FilterParams {
-            space: JointSpace { white: white * c as f64, ..space },
-            ..params.clone()
-        };
+        let scaled = JointSpace { white: white * c as f64, ..space };
         let a = records(&p);
         let b: Vec<Record> = a.iter().map(|r| Record::new(r.x, r.y, r.t, [r.r * c, r.g * c, r.b * c])).collect();
-        prop_assert_eq!(decide(&a, &p, &params), decide(&b, &p, &scaled_params));
+        prop_assert_eq!(decide(&a, &p, k, &space), decide(&b, &p, k, &scaled));
     }
 }

@@ -48,7 +48,7 @@ fn a_drift_is_reported_and_bless_rewrites_the_expectations() {
         .args(["regress", root.path().to_str().unwrap()])
         .output()
         .unwrap();
-    assert!(!out.status.success());
+    assert_eq!(out.status.code(), Some(3), "a drift exits 3");
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stdout.contains("glossy-room: DRIFT"), "{stdout}");

@@ -92,12 +92,14 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
     // those parameters.
     let mut f = pathdensity::commands::filter::FilterOptions::new(&dump, dir.path().join("f"));
     f.reference = Some(dir.path().join("ref.exr"));
-    f.methods = vec![
-        pathdensity::methods::Method::Median,
-        pathdensity::methods::Method::Trimmed,
-        pathdensity::methods::Method::Mon,
-        pathdensity::methods::Method::Rwmc,
-    ];
+    f.config.methods = [
+        pathdensity::config::Method::Median,
+        pathdensity::config::Method::Trimmed,
+        pathdensity::config::Method::Mon,
+        pathdensity::config::Method::Rwmc,
+    ]
+    .into_iter()
+    .collect();
     f.html = false;
     let fr = pathdensity::commands::filter::filter(&f).unwrap();
     let by = |n: &str| s.baselines.iter().find(|b| b.method == n).unwrap().metrics;
@@ -145,8 +147,8 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
 #[test]
 fn equal_time_rows_are_prefix_renders_at_matching_time() {
     use pathdensity::commands::filter::{FilterOptions, filter};
+    use pathdensity::config::Method;
     use pathdensity::dump::{DumpReader, DumpWriter};
-    use pathdensity::methods::Method;
     let fixture =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/glossy-room-pass");
     let dir = tempfile::tempdir().unwrap();
@@ -167,21 +169,23 @@ fn equal_time_rows_are_prefix_renders_at_matching_time() {
         w.finish().unwrap();
         let mut f = FilterOptions::new(&path, dir.path().join(format!("f{m}")));
         f.reference = Some(fixture.join("reference.exr"));
-        f.methods = vec![
+        f.config.methods = [
             Method::Mean,
             Method::Filtered,
             Method::FilteredEnergy,
             Method::Mon,
             Method::Gmon,
             Method::Rwmc,
-        ];
+        ]
+        .into_iter()
+        .collect();
         f.html = false;
         filter(&f).unwrap().metrics[name].pooled
     };
 
     // Rendering dominates (1e6 s for 8 passes): the mean gets as many
     // passes as the filter, capped at the dump's 8.
-    let slow = pathdensity::sweep::equal_time(&o, 1e6, &indicatif::ProgressBar::hidden()).unwrap();
+    let slow = pathdensity::sweep::equal_time(&o, 1e6, &pathdensity::progress::Silent).unwrap();
     let spps: Vec<u32> = slow.iter().map(|r| r.spp).collect();
     assert_eq!(spps, [1, 2, 4, 8]);
     for r in &slow {
@@ -201,7 +205,7 @@ fn equal_time_rows_are_prefix_renders_at_matching_time() {
         assert!(r.mean_seconds <= r.filtered_seconds);
     }
     // Rendering is nearly free: the filter's time buys the mean every pass.
-    let fast = pathdensity::sweep::equal_time(&o, 1e-9, &indicatif::ProgressBar::hidden()).unwrap();
+    let fast = pathdensity::sweep::equal_time(&o, 1e-9, &pathdensity::progress::Silent).unwrap();
     assert!(fast.iter().all(|r| r.mean_spp == 8));
     // A pixel-major dump has no prefix renders: refused by name.
     let e = pathdensity::sweep::equal_time(
@@ -211,7 +215,7 @@ fn equal_time_rows_are_prefix_renders_at_matching_time() {
             dir.path().join("eq2"),
         ),
         1.0,
-        &indicatif::ProgressBar::hidden(),
+        &pathdensity::progress::Silent,
     )
     .unwrap_err()
     .to_string();

@@ -31,7 +31,11 @@ pub struct Core {
 }
 
 impl Core {
-    pub fn new(reconstruction: Reconstruction, reconstruct_seconds: f64, replay_seconds: f64) -> Core {
+    pub fn new(
+        reconstruction: Reconstruction,
+        reconstruct_seconds: f64,
+        replay_seconds: f64,
+    ) -> Core {
         let removed = energy::removed(&reconstruction.mean, &reconstruction.filtered);
         Core {
             reconstruction,
@@ -108,7 +112,9 @@ impl<'s, 'a> Estimators<'s, 'a> {
             Method::Gmon => self.mon(|m| &m.gmon),
             Method::Bilateral => after(
                 mean_s,
-                timed(|| imagespace::bilateral(&rec.mean, &rec.occupancy, c.bilateral(), self.white)),
+                timed(|| {
+                    imagespace::bilateral(&rec.mean, &rec.occupancy, c.bilateral(), self.white)
+                }),
             ),
             Method::Median3 => after(
                 mean_s,

@@ -81,7 +81,9 @@ impl Run {
 
 /// A thread pool of `threads` workers (0: one per core).
 pub fn thread_pool(threads: usize) -> Result<rayon::ThreadPool, PipelineError> {
-    Ok(rayon::ThreadPoolBuilder::new().num_threads(threads).build()?)
+    Ok(rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()?)
 }
 
 /// The white luminance `config` asks for on these records.
@@ -103,7 +105,15 @@ pub fn replay(
         exact_sigma,
         ..ReplayOptions::default()
     };
-    density::run(records, header, &config.space(white), config.k, config.index, &options, progress)
+    density::run(
+        records,
+        header,
+        &config.space(white),
+        config.k,
+        config.index,
+        &options,
+        progress,
+    )
 }
 
 /// The mean of every valid sample and the filtered image of those
@@ -132,7 +142,14 @@ pub fn run(
     let pool = thread_pool(options.threads)?;
     let white = resolve_white(config, records, header);
     let result = pool.install(|| {
-        replay(records, header, config, white, options.exact_sigma, options.progress)
+        replay(
+            records,
+            header,
+            config,
+            white,
+            options.exact_sigma,
+            options.progress,
+        )
     });
     options.progress.finish();
     let t = Instant::now();

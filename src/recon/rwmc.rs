@@ -13,8 +13,8 @@
 use rayon::prelude::*;
 
 use super::Image;
-use crate::dump::{Header, Record, Validity};
 use crate::config::FilterConfig;
+use crate::dump::{Header, Record, Validity};
 use crate::joint::lab::luminance;
 
 /// The method's parameters; the defaults are the authors'.

@@ -139,7 +139,10 @@ impl FilterReport {
         // rwmc's counting reliability is at most spp / κ: below κ samples
         // per pixel no cascade is fully trusted and the image darkens.
         let spp = self.header.spp as f64;
-        if self.method_seconds.contains_key("rwmc") && spp > 0.0 && self.config.rwmc_kappa > spp / 2.0 {
+        if self.method_seconds.contains_key("rwmc")
+            && spp > 0.0
+            && self.config.rwmc_kappa > spp / 2.0
+        {
             s += &format!(
                 "  note: rwmc's κ = {} needs well over κ samples per pixel; with {} spp try --rwmc-kappa {}\n",
                 self.config.rwmc_kappa,

@@ -78,7 +78,11 @@ pub fn equal_time(
         k: if o.ks.len() == 1 { o.ks[0] } else { base.k },
         sigma_image: one(&o.sigma_images, base.sigma_image),
         sigma_color: one(&o.sigma_colors, base.sigma_color),
-        white: if o.whites.len() == 1 { o.whites[0] } else { base.white },
+        white: if o.whites.len() == 1 {
+            o.whites[0]
+        } else {
+            base.white
+        },
         mon_groups: *o.mon_groups.first().unwrap_or(&base.mon_groups),
         rwmc_kappa: *o.rwmc_kappas.first().unwrap_or(&base.rwmc_kappa),
         ..*base

@@ -74,12 +74,22 @@ impl SweepOptions {
         let mon = self
             .mon_groups
             .iter()
-            .map(|&mon_groups| checked(FilterConfig { mon_groups, ..self.config }))
+            .map(|&mon_groups| {
+                checked(FilterConfig {
+                    mon_groups,
+                    ..self.config
+                })
+            })
             .collect::<Result<_, _>>()?;
         let rwmc = self
             .rwmc_kappas
             .iter()
-            .map(|&rwmc_kappa| checked(FilterConfig { rwmc_kappa, ..self.config }))
+            .map(|&rwmc_kappa| {
+                checked(FilterConfig {
+                    rwmc_kappa,
+                    ..self.config
+                })
+            })
             .collect::<Result<_, _>>()?;
         Ok((mon, rwmc))
     }
@@ -176,7 +186,12 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
         let base = &o.config;
         let white = pipeline::resolve_white(base, records, &h);
         let core = pipeline::reconstruct(records, &h, base, |_| true, 0.0);
-        let valid: u64 = core.reconstruction.occupancy.iter().map(|&n| n as u64).sum();
+        let valid: u64 = core
+            .reconstruction
+            .occupancy
+            .iter()
+            .map(|&n| n as u64)
+            .sum();
         let mut baselines = Vec::new();
         let mut add = |c: &FilterConfig, method: Method, label: String| {
             let (img, seconds) = Estimators::new(&shared, c, white, &core).image(method);
@@ -186,7 +201,12 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
                 metrics: compare(&img),
             });
         };
-        for m in [Method::Mean, Method::Median, Method::Trimmed, Method::Bilateral] {
+        for m in [
+            Method::Mean,
+            Method::Median,
+            Method::Trimmed,
+            Method::Bilateral,
+        ] {
             add(base, m, m.name().to_string());
         }
         for c in &mon_configs {
@@ -213,7 +233,8 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
                 v
             }
         };
-        let row = pool.install(|| configuration(records, &h, &config, white_value, &reference, valid));
+        let row =
+            pool.install(|| configuration(records, &h, &config, white_value, &reference, valid));
         rows.push(row);
         progress.inc(1);
     }
@@ -263,17 +284,29 @@ fn configuration(
         return row;
     }
     let t = Instant::now();
-    let result = pipeline::replay(records, h, config, white_value, false, &crate::progress::Silent);
-    let core = pipeline::reconstruct(records, h, config, |i| {
-        crate::density::Decision::accepted(result.decisions[i])
-    }, 0.0);
+    let result = pipeline::replay(
+        records,
+        h,
+        config,
+        white_value,
+        false,
+        &crate::progress::Silent,
+    );
+    let core = pipeline::reconstruct(
+        records,
+        h,
+        config,
+        |i| crate::density::Decision::accepted(result.decisions[i]),
+        0.0,
+    );
     row.seconds = t.elapsed().as_secs_f64();
     let c = &result.counts;
     row.stored = c.stored;
     row.accepted_fraction =
         (c.accepted_streaming + c.accepted_final) as f64 / c.valid.max(1) as f64;
     row.fallback_pixels = core.reconstruction.fallback_pixels;
-    row.metrics = Some(metrics::compare(&core.reconstruction.filtered, reference, config.exposure).pooled);
+    row.metrics =
+        Some(metrics::compare(&core.reconstruction.filtered, reference, config.exposure).pooled);
     row
 }
 
@@ -304,5 +337,4 @@ impl Sweep {
         front.sort_by(|&a, &b| self.rows[a].seconds.total_cmp(&self.rows[b].seconds));
         front
     }
-
 }

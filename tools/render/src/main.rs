@@ -104,8 +104,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             Recon::Gaussian => ReconFilter::gaussian(),
         };
         let t = Instant::now();
-        let img =
-            pool.install(|| render_reference(&scene, &st, filter, &Bar::new("reference")))?;
+        let img = pool.install(|| render_reference(&scene, &st, filter, &Bar::new("reference")))?;
         let dir = path.parent().unwrap_or(std::path::Path::new("."));
         let stem = path
             .file_stem()

@@ -4,12 +4,12 @@
 
 use std::path::Path;
 
-use pathdensity::progress::Silent;
 use pathdensity::commands::filter::{FilterOptions, filter};
 use pathdensity::dump::{DumpReader, Order, Record, Validity};
 use pathdensity::io::exr;
 use pathdensity::joint::lab::luminance;
 use pathdensity::metrics;
+use pathdensity::progress::Silent;
 use pathdensity::recon::{Film, Image, ReconFilter};
 use pathdensity_render::sampler::independent_seed;
 use pathdensity_render::{RenderSettings, SceneName, render_dump, render_reference};
@@ -35,22 +35,13 @@ fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
 
 fn render(scene: SceneName, st: &RenderSettings, path: &Path, threads: usize) {
     let s = scene.build(st.frames);
-    in_pool(threads, || {
-        render_dump(&s, st, path, &Silent)
-    })
-    .unwrap();
+    in_pool(threads, || render_dump(&s, st, path, &Silent)).unwrap();
 }
 
 fn reference(scene: SceneName, size: u32, spp: u32) -> Image {
     let mut st = settings(size, spp, Order::PixelMajor);
     st.seed = independent_seed(st.seed);
-    render_reference(
-        &scene.build(1),
-        &st,
-        ReconFilter::Box,
-        &Silent,
-    )
-    .unwrap()
+    render_reference(&scene.build(1), &st, ReconFilter::Box, &Silent).unwrap()
 }
 
 /// The mean image of a dump, as the filter stage reconstructs it.
