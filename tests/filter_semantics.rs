@@ -314,8 +314,14 @@ fn every_index_matches_the_brute_force_oracle() {
             white: 1.0,
         };
         let (od, os) = oracle(&recs, &h, k, &space);
+        // The library's plain replay (the specification) is the oracle's.
+        let plain = density::plain::replay(&recs, &h, &space, k);
+        assert_eq!(plain.decisions, od, "seed {seed} plain");
+        let ps = plain.sigma.as_ref().unwrap();
+        assert!(ps.iter().zip(&os).all(|(a, b)| a.to_bits() == b.to_bits()));
         for index in INDEXES {
             let exact = run(&recs, &h, &params(k, space, index, true));
+            assert_eq!(exact.counts, plain.counts, "seed {seed} {index:?} counts");
             assert_eq!(exact.decisions, od, "seed {seed} {index:?} exact");
             let s = exact.sigma.unwrap();
             for i in 0..recs.len() {
@@ -402,7 +408,13 @@ fn results_do_not_depend_on_the_thread_count_batch_size_or_deferral() {
                         r.sigma.map(|s| s.iter().map(|s| s.to_bits()).collect());
                     let got = (r.decisions, bits, r.counts);
                     match &base {
-                        None => base = Some(got),
+                        None => {
+                            // The first run is the plain replay's.
+                            let plain = density::plain::replay(&recs, &h, &prm.space, 10);
+                            assert_eq!(got.0, plain.decisions);
+                            assert_eq!(got.2, plain.counts);
+                            base = Some(got)
+                        }
                         Some(b) => assert!(
                             b == &got,
                             "exact {exact} threads {threads} batch {batch} deferral {deferral:?}"

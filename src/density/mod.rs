@@ -1,10 +1,139 @@
-//! The path-density filter (SPEC §3): a streaming replay that accepts a
-//! sample when the mean distance to its k nearest stored samples is below 1,
-//! and stores it otherwise, followed by a final pass over the stored set.
+//! The path-density filter (docs/filter.md): a replay of the dump in file
+//! order that accepts a sample when the mean distance σ to its k nearest
+//! stored samples is below 1 and stores it otherwise, then a final pass
+//! that accepts each stored sample whose σ against the others is below 1.
+//!
+//! [`plain`] is that algorithm as written, one sample at a time: the
+//! specification. [`run`] is the same replay made fast and parallel, with
+//! the same bytes for any thread count: [`schedule`] overlaps a parallel
+//! search of each batch ([`batch`], accelerated by [`seeds`]) with the
+//! in-order decisions ([`in_order`]), balanced by [`deferral`].
 
-pub mod filter;
+mod batch;
+mod deferral;
+mod in_order;
 pub mod index;
+pub mod plain;
+mod schedule;
+mod seeds;
 pub mod sigma;
 
-pub use filter::{Decision, FilterCounts, FilterResult, ReplayOptions, run};
 pub use index::IndexKind;
+
+use index::grid::Grid;
+use index::kdtree::KdTree;
+
+use crate::dump::{Header, InvalidCounts, Record};
+use crate::joint::JointSpace;
+use crate::progress::Progress;
+
+/// The fate of one record, as written by `--decisions` (one byte each).
+#[repr(u8)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Decision {
+    Invalid = 0,
+    AcceptedStreaming = 1,
+    AcceptedFinal = 2,
+    Rejected = 3,
+}
+
+impl Decision {
+    /// True for samples splatted into the filtered image.
+    pub fn accepted(byte: u8) -> bool {
+        byte == Decision::AcceptedStreaming as u8 || byte == Decision::AcceptedFinal as u8
+    }
+}
+
+/// How the replay runs. None of these change a decision.
+#[derive(Clone, Debug)]
+pub struct ReplayOptions {
+    /// Compute every sample's exact σ (needed for the σ map).
+    pub exact_sigma: bool,
+    /// Samples per parallel batch.
+    pub batch: usize,
+    /// The share of searches left to the in-order pass (see [`Deferral`]);
+    /// `None` adapts it to balance the threads.
+    pub deferral: Option<f64>,
+}
+
+impl Default for ReplayOptions {
+    fn default() -> Self {
+        ReplayOptions {
+            exact_sigma: false,
+            batch: 4096,
+            deferral: None,
+        }
+    }
+}
+
+/// The filter's parameters and how to run it, as the replay uses them.
+struct Params<'a> {
+    k: usize,
+    space: &'a JointSpace,
+    exact_sigma: bool,
+    batch: usize,
+    deferral: Option<f64>,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct FilterCounts {
+    pub records: u64,
+    pub valid: u64,
+    pub invalid: InvalidCounts,
+    pub accepted_streaming: u64,
+    pub accepted_final: u64,
+    pub rejected: u64,
+    /// |T| at the end of the replay.
+    pub stored: u64,
+}
+
+pub struct FilterResult {
+    /// One [`Decision`] byte per record, in file order.
+    pub decisions: Vec<u8>,
+    /// With `exact_sigma`: the σ that decided each record (NaN for invalid ones).
+    pub sigma: Option<Vec<f64>>,
+    pub counts: FilterCounts,
+    pub streaming_seconds: f64,
+    pub final_seconds: f64,
+}
+
+/// Runs the filter (k nearest neighbours in the joint space `space`) over
+/// `records` on the current rayon pool.
+pub fn run(
+    records: &[Record],
+    header: &Header,
+    space: &JointSpace,
+    k: usize,
+    index: IndexKind,
+    options: &ReplayOptions,
+    progress: &dyn Progress,
+) -> FilterResult {
+    assert!(k >= 1, "k must be at least 1");
+    let params = &Params {
+        k,
+        space,
+        exact_sigma: options.exact_sigma,
+        batch: options.batch,
+        deferral: options.deferral,
+    };
+    let s = space;
+    let extent = [
+        header.width as f64 / s.sigma_image,
+        header.height as f64 / s.sigma_image,
+        header.frames as f64 / s.sigma_time,
+    ];
+    match (header.animated(), index) {
+        (false, IndexKind::Grid) => {
+            schedule::replay::<5, _>(records, header, params, || Grid::new(extent), progress)
+        }
+        (true, IndexKind::Grid) => {
+            schedule::replay::<6, _>(records, header, params, || Grid::new(extent), progress)
+        }
+        (false, IndexKind::Kdtree) => {
+            schedule::replay::<5, _>(records, header, params, KdTree::default, progress)
+        }
+        (true, IndexKind::Kdtree) => {
+            schedule::replay::<6, _>(records, header, params, KdTree::default, progress)
+        }
+    }
+}
