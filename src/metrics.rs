@@ -1,4 +1,4 @@
-//! Error metrics against a reference image (SPEC §5).
+//! Error metrics against a reference image (docs/filter.md §4).
 
 use crate::joint::lab::luminance;
 use crate::recon::{Image, stored};

@@ -1,4 +1,4 @@
-//! The baselines of SPEC §4 through the `filter` command: hand-computed
+//! The baselines of docs/filter.md §3 through the `filter` command: hand-computed
 //! values read back from the EXRs, results independent of the dump's
 //! order, and animations reconstructed frame by frame.
 

@@ -1,4 +1,4 @@
-//! SPEC §1: the byte layout, strict reading, and one clear error per defect.
+//! docs/format.md: the byte layout, strict reading, and one clear error per defect.
 
 mod common;
 

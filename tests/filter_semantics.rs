@@ -1,4 +1,4 @@
-//! SPEC §3 behaviours, each pinned by a small dump with a known answer,
+//! docs/filter.md §2 behaviours, each pinned by a small dump with a known answer,
 //! and every index checked against the brute-force oracle.
 
 mod common;

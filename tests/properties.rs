@@ -118,7 +118,7 @@ proptest! {
     /// σ_color → ∞ (10⁹): replacing every colour leaves the decisions
     /// unchanged, and `filtered` equals `mean` on every pixel that lost no
     /// sample. (Not on every pixel: a rejected sample changes its pixel's
-    /// average, SPEC §3.) Jittered samples only: with pixel-centre samples,
+    /// average, docs/filter.md §2.) Jittered samples only: with pixel-centre samples,
     /// image distances tie exactly and a σ of exactly 1 can flip on the
     /// colour's 10⁻⁷ contribution.
     #[test]

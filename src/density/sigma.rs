@@ -1,5 +1,5 @@
 //! σ(s, T): the mean distance from a sample to its k nearest stored points
-//! (SPEC §3), and the bounds that let a search stop early without changing
+//! (docs/filter.md §2), and the bounds that let a search stop early without changing
 //! any decision.
 
 /// The k smallest squared distances seen so far, with the ids of their
@@ -311,7 +311,7 @@ impl KBest {
     }
 }
 
-/// The canonical σ (SPEC §3) from the k smallest squared distances, sorted
+/// The canonical σ (docs/filter.md §2) from the k smallest squared distances, sorted
 /// ascending: their square roots added one at a time from the smallest in
 /// f64 and divided by k; +∞ when fewer than k are given. Every σ in this
 /// crate comes from this function, so the search path that found the

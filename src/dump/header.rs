@@ -12,7 +12,7 @@ pub const MAX_PIXELS: u64 = 1 << 26;
 /// Largest number of frames.
 pub const MAX_FRAMES: u64 = 1 << 20;
 
-/// Record order promised by the producer (SPEC §1).
+/// Record order promised by the producer (docs/format.md).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Order {

@@ -1,4 +1,4 @@
-//! The sample dump, format version 1 (`.pds`, SPEC §1).
+//! The sample dump, format version 1 (`.pds`, docs/format.md).
 //!
 //! A dump is a small bincode header followed by a flat array of 24-byte
 //! records. [`DumpReader`] maps the file and hands out the records as a
@@ -16,7 +16,7 @@ pub use record::{InvalidCounts, Record, Validity};
 pub use writer::{DumpWriter, PresizedDump};
 
 /// Byte offset of the first record for a header of `header_len` bytes:
-/// `16 + header_len` rounded up to a multiple of 64 (SPEC §1).
+/// `16 + header_len` rounded up to a multiple of 64 (docs/format.md).
 pub fn data_offset(header_len: usize) -> usize {
     (16 + header_len).div_ceil(64) * 64
 }

@@ -20,7 +20,7 @@ pub struct DumpReader {
 }
 
 impl DumpReader {
-    /// Opens and validates `path` strictly (SPEC §1): magic, version, header
+    /// Opens and validates `path` strictly (docs/format.md): magic, version, header
     /// length, exact header decoding, zero padding, and a file size equal to
     /// `data_offset + 24 × sample_count`.
     pub fn open(path: impl AsRef<Path>) -> Result<DumpReader, DumpError> {
@@ -86,7 +86,7 @@ impl DumpReader {
     }
 }
 
-/// Validates the start of a dump of `size` bytes (SPEC §1): magic, version,
+/// Validates the start of a dump of `size` bytes (docs/format.md): magic, version,
 /// header length, exact header decoding, zero padding, and a size equal to
 /// `data_offset + 24 × sample_count`. `prefix` holds the file's first bytes
 /// (at least `data_offset` of them when the file is that long). Returns the

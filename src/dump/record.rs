@@ -14,7 +14,7 @@ pub struct Record {
     pub b: f32,
 }
 
-/// Why a record is or is not usable (SPEC §1).
+/// Why a record is or is not usable (docs/format.md).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Validity {
     Valid,

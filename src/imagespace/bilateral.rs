@@ -1,4 +1,4 @@
-//! The bilateral filter (Tomasi & Manduchi 1998) as SPEC §4 fixes it:
+//! The bilateral filter (Tomasi & Manduchi 1998) as docs/filter.md §3 fixes it:
 //! spatial weight exp(−d²/(2 σ_s²)) over the (2⌈3σ_s⌉+1)² window, range
 //! weight exp(−ΔE²/(2 σ_r²)) with ΔE the CIELAB distance of the two pixels'
 //! colours (CIE76, with the joint space's white), the window clipped at the

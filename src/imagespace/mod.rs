@@ -1,7 +1,7 @@
-//! Image-space filters applied to reconstructed images (SPEC §4): the
+//! Image-space filters applied to reconstructed images (docs/filter.md §3): the
 //! bilateral filter and the 3 × 3 median. They work frame by frame, and
 //! pixels that contain no valid sample (`occupancy` 0) are neither used as
-//! neighbours nor written: SPEC §4 keeps them 0 in every image.
+//! neighbours nor written: docs/filter.md §3 keeps them 0 in every image.
 
 pub mod bilateral;
 pub mod median3;

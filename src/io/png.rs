@@ -1,5 +1,5 @@
 //! PNG previews: linear radiance × exposure, clamped to [0, 1], encoded
-//! with the sRGB transfer curve — the same display transform as SPEC §5's
+//! with the sRGB transfer curve — the same display transform as docs/filter.md §4's
 //! RMS_display, so a preview shows what that metric measures.
 
 use std::path::Path;

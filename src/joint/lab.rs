@@ -1,4 +1,4 @@
-//! Linear Rec.709 RGB → CIELAB, exactly as SPEC §2 fixes it (f64, products
+//! Linear Rec.709 RGB → CIELAB, exactly as docs/filter.md §1 fixes it (f64, products
 //! added left to right, no fused multiply-add).
 
 /// The D65 white point relative to Y = 1.
@@ -34,7 +34,7 @@ fn f(u: f64) -> f64 {
     }
 }
 
-/// CIELAB of linear RGB for a white of luminance `white` (SPEC §2's Y_w).
+/// CIELAB of linear RGB for a white of luminance `white` (docs/filter.md §1's Y_w).
 ///
 /// ```
 /// let lab = pathdensity::joint::lab::rgb_to_lab([1.0, 1.0, 1.0], 1.0);

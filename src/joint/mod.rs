@@ -1,4 +1,4 @@
-//! The joint image–colour(–time) space of SPEC §2, where the density filter
+//! The joint image–colour(–time) space of docs/filter.md §1, where the density filter
 //! measures distances.
 
 pub mod lab;
@@ -25,7 +25,7 @@ impl Default for JointSpace {
     }
 }
 
-/// Rounds an f64 coordinate to f32, clamped to the finite range (SPEC §2).
+/// Rounds an f64 coordinate to f32, clamped to the finite range (docs/filter.md §1).
 #[inline]
 fn coord(v: f64) -> f32 {
     (v as f32).clamp(-f32::MAX, f32::MAX)
@@ -53,7 +53,7 @@ impl JointSpace {
 }
 
 /// The canonical joint distance: computed in f64 from the f32 coordinates,
-/// squared differences added in coordinate order (SPEC §2). Returns the
+/// squared differences added in coordinate order (docs/filter.md §1). Returns the
 /// squared distance; `sqrt` of it is the distance.
 #[inline(always)]
 pub fn dist2<const D: usize>(p: &[f32; D], q: &[f32; D]) -> f64 {

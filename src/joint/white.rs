@@ -1,4 +1,4 @@
-//! The Lab white Y_w (SPEC §2): fixed, or `auto` from the dump.
+//! The Lab white Y_w (docs/filter.md §1): fixed, or `auto` from the dump.
 //!
 //! The paper's σ_color = 100 assumes radiance 1 is white, so the same scene
 //! at another exposure gives other decisions. `auto` makes the white travel

@@ -1,4 +1,4 @@
-//! Per-pixel medians (SPEC §4): per channel, the middle value of the valid
+//! Per-pixel medians (docs/filter.md §3): per channel, the middle value of the valid
 //! samples a pixel contains, the mean of the two middle ones for an even count.
 
 use std::collections::HashMap;

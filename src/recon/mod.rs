@@ -1,4 +1,4 @@
-//! Reconstruction (SPEC §4): per-pixel weighted means `Σ w c / Σ w` under a
+//! Reconstruction (docs/filter.md §3): per-pixel weighted means `Σ w c / Σ w` under a
 //! reconstruction filter W, accumulated in f64 in file order so that the
 //! result does not depend on the thread count.
 
@@ -132,7 +132,7 @@ impl Film {
     }
 
     /// The weighted mean of every pixel; pixels with no valid sample of
-    /// their own (`occupancy` 0) are 0, as SPEC §4 requires.
+    /// their own (`occupancy` 0) are 0, as docs/filter.md §3 requires.
     pub fn resolve(&self, occupancy: &[u32]) -> Image {
         let frames = self.sum.len() / (self.width * self.height).max(1);
         let mut img = Image::new(self.width, self.height, frames);
@@ -153,7 +153,7 @@ fn add(acc: &mut [f64; 4], c: [f64; 3], w: f64) {
     acc[3] += w;
 }
 
-/// The mean and filtered images of SPEC §4, in one pass over the dump.
+/// The mean and filtered images of docs/filter.md §3, in one pass over the dump.
 pub struct Reconstruction {
     pub mean: Image,
     pub filtered: Image,

@@ -1,4 +1,4 @@
-//! Per-pixel robust estimators (SPEC §4): the median and the α-trimmed
+//! Per-pixel robust estimators (docs/filter.md §3): the median and the α-trimmed
 //! mean, per channel, over the valid samples a pixel contains.
 
 use super::Image;

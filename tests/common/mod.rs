@@ -1,5 +1,5 @@
 //! Shared test helpers, and the oracle: a plain single-threaded replay of
-//! SPEC §3 by brute force, written independently of the library's indexes.
+//! docs/filter.md §2 by brute force, written independently of the library's indexes.
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};

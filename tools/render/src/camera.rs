@@ -1,4 +1,4 @@
-//! A pinhole camera. Film coordinates follow SPEC §1: x to the right, y
+//! A pinhole camera. Film coordinates follow docs/format.md: x to the right, y
 //! down, pixel (i, j) covering [i, i+1) × [j, j+1).
 
 use crate::vec3::{Ray, Vec3};

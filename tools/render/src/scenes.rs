@@ -1,7 +1,7 @@
 //! The scenes, each built to show one effect from the paper. Units: the
 //! rooms span x ∈ [−1, 1], y ∈ [0, 2], z ∈ [−1, 1], open towards the camera.
 //! Radiance is scaled so that a lit white wall is about 0.3–1: the paper's
-//! σ_color = 100 assumes radiance 1 is white (SPEC §2).
+//! σ_color = 100 assumes radiance 1 is white (docs/filter.md §1).
 
 use crate::camera::Camera;
 use crate::geometry::Shape;
