@@ -1,23 +1,25 @@
 //! pathdensity: density-based outlier rejection for Monte Carlo sample dumps
 //! (DeCoro, Weyrich & Rusinkiewicz, Pacific Graphics 2010).
 //!
-//! The modules follow the pipeline: [`dump`] (the `.pds` format) →
-//! [`joint`] (the joint image–colour–time space) → [`density`] (the
-//! filter) → [`recon`] (images) → [`metrics`] → [`report`].
+//! This crate is the top of the workspace: the jobs the command line runs
+//! ([`commands`]) and what they write beside the images ([`report`]: the
+//! summary, `report.json`, `report.html`, plots, PNG previews). The
+//! pipeline itself is `pathdensity-core`, the file format
+//! `pathdensity-format`; both are re-exported here under their usual names.
 
+pub use pathdensity_core::{
+    config, density, imagespace, joint, metrics, pipeline, progress, quantile, recon, regress,
+    sweep, synth,
+};
+pub use pathdensity_format::dump;
+
+/// Files in and out: atomic writes and EXR (`pathdensity-format`), PNG
+/// previews.
+pub mod io {
+    pub use pathdensity_format::{atomic, exr};
+    pub mod png;
+}
+
+pub mod cli;
 pub mod commands;
-pub mod config;
-pub mod density;
-pub mod dump;
-pub mod imagespace;
-pub mod io;
-pub mod joint;
-pub mod metrics;
-pub mod pipeline;
-pub mod progress;
-pub mod quantile;
-pub mod recon;
-pub mod regress;
 pub mod report;
-pub mod sweep;
-pub mod synth;

@@ -12,8 +12,7 @@ use pathdensity::dump::Order;
 use pathdensity::sweep::SweepOptions;
 use pathdensity::synth::SynthParams;
 
-mod bar;
-use bar::Bar;
+use pathdensity::cli::Bar;
 
 #[derive(Parser)]
 #[command(

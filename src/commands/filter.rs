@@ -54,9 +54,7 @@ impl FilterOptions {
 fn prepare_out_dir(dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: cannot create output directory", dir.display()))?;
-    let probe = atomic::AtomicFile::new(dir.join("probe"));
-    probe
-        .create()
+    atomic::AtomicFile::create(dir.join("probe"))
         .with_context(|| format!("{}: output directory is not writable", dir.display()))?;
     Ok(())
 }

@@ -6,6 +6,7 @@ use anyhow::{Context, Result, anyhow};
 use crate::io::atomic;
 use crate::metrics::Metrics;
 use crate::progress::{Progress, Silent};
+use crate::report;
 use crate::sweep::{self, Sweep, SweepOptions};
 
 /// Runs `o` with no progress shown.
@@ -17,15 +18,24 @@ pub fn sweep(o: &SweepOptions) -> Result<Sweep> {
 pub fn sweep_with_progress(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
     let s = sweep::run(o, progress)?;
     let dir = &o.out_dir;
-    atomic::write_bytes(&dir.join("sweep.csv"), s.csv().as_bytes())?;
+    atomic::write_bytes(&dir.join("sweep.csv"), report::sweep::csv(&s).as_bytes())?;
     let json = serde_json::to_vec_pretty(&s).expect("a sweep serialises");
     atomic::write_bytes(&dir.join("sweep.json"), &json)?;
     let plot = |r: Result<Vec<u8>, String>| r.map_err(|e| anyhow!("cannot draw a plot: {e}"));
     let svg = |r: Result<String, String>| plot(r.map(String::into_bytes));
-    atomic::write_bytes(&dir.join("rms_vs_time.svg"), &svg(s.plot_time())?)?;
-    atomic::write_bytes(&dir.join("rms_vs_time.png"), &plot(s.plot_time_png())?)?;
-    atomic::write_bytes(&dir.join("rms_vs_k.svg"), &svg(s.plot_k())?)?;
-    atomic::write_bytes(&dir.join("rms_vs_k.png"), &plot(s.plot_k_png())?)?;
+    atomic::write_bytes(
+        &dir.join("rms_vs_time.svg"),
+        &svg(report::sweep::plot_time(&s))?,
+    )?;
+    atomic::write_bytes(
+        &dir.join("rms_vs_time.png"),
+        &plot(report::sweep::plot_time_png(&s))?,
+    )?;
+    atomic::write_bytes(&dir.join("rms_vs_k.svg"), &svg(report::sweep::plot_k(&s))?)?;
+    atomic::write_bytes(
+        &dir.join("rms_vs_k.png"),
+        &plot(report::sweep::plot_k_png(&s))?,
+    )?;
     Ok(s)
 }
 

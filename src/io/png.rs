@@ -29,5 +29,5 @@ pub fn encode(img: &image::RgbImage) -> Result<Vec<u8>> {
 /// Writes an 8-bit image as PNG, atomically.
 pub fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
     let bytes = encode(img).with_context(|| path.display().to_string())?;
-    super::atomic::write_bytes(path, &bytes)
+    Ok(super::atomic::write_bytes(path, &bytes)?)
 }

@@ -7,213 +7,247 @@ use super::plots::{to_png, to_svg};
 use crate::metrics::Metrics;
 use crate::sweep::Sweep;
 
-impl Sweep {
-    /// One line per configuration (method `filtered`) and per baseline.
-    pub fn csv(&self) -> String {
-        let mut s = String::from(
-            "method,k,sigma_color,sigma_image,white,white_value,status,seconds,stored,accepted_fraction,fallback_pixels,rms,rms_display,rel_mse,energy_ratio\n",
-        );
-        let m = |m: &Option<Metrics>| match m {
-            Some(m) => format!(
-                "{},{},{},{}",
-                m.rms, m.rms_display, m.rel_mse, m.energy_ratio
-            ),
-            None => ",,,".into(),
-        };
-        for r in &self.rows {
-            let status = match &r.failure {
-                None => "ok".to_string(),
-                Some(f) => format!("\"failed: {}\"", f.replace('"', "'")),
-            };
-            s += &format!(
-                "filtered,{},{},{},{},{},{},{},{},{},{},{}\n",
-                r.k,
-                r.sigma_color,
-                r.sigma_image,
-                r.white,
-                r.white_value,
-                status,
-                r.seconds,
-                r.stored,
-                r.accepted_fraction,
-                r.fallback_pixels,
-                m(&r.metrics)
-            );
+/// One line of `sweep.csv`: a configuration (method `filtered`) or a
+/// baseline, whose filter fields are empty.
+#[derive(serde::Serialize)]
+struct CsvRow<'a> {
+    method: &'a str,
+    k: Option<usize>,
+    sigma_color: Option<f64>,
+    sigma_image: Option<f64>,
+    white: Option<&'a str>,
+    white_value: Option<f64>,
+    status: String,
+    seconds: f64,
+    stored: Option<u64>,
+    accepted_fraction: Option<f64>,
+    fallback_pixels: Option<u64>,
+    rms: Option<f64>,
+    rms_display: Option<f64>,
+    rel_mse: Option<f64>,
+    energy_ratio: Option<f64>,
+}
+
+impl CsvRow<'_> {
+    fn metrics(mut self, m: Option<&Metrics>) -> Self {
+        self.rms = m.map(|m| m.rms);
+        self.rms_display = m.map(|m| m.rms_display);
+        self.rel_mse = m.map(|m| m.rel_mse);
+        self.energy_ratio = m.map(|m| m.energy_ratio);
+        self
+    }
+}
+
+/// `sweep.csv`: one line per configuration, then one per baseline.
+pub fn csv(s: &Sweep) -> String {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    let rows = s.rows.iter().map(|r| {
+        CsvRow {
+            method: "filtered",
+            k: Some(r.k),
+            sigma_color: Some(r.sigma_color),
+            sigma_image: Some(r.sigma_image),
+            white: Some(&r.white),
+            white_value: Some(r.white_value),
+            status: match &r.failure {
+                None => "ok".into(),
+                Some(f) => format!("failed: {f}"),
+            },
+            seconds: r.seconds,
+            stored: Some(r.stored),
+            accepted_fraction: Some(r.accepted_fraction),
+            fallback_pixels: Some(r.fallback_pixels),
+            rms: None,
+            rms_display: None,
+            rel_mse: None,
+            energy_ratio: None,
         }
-        for b in &self.baselines {
-            s += &format!(
-                "{},,,,,,ok,{},,,,{}\n",
-                b.method,
-                b.seconds,
-                m(&Some(b.metrics))
-            );
+        .metrics(r.metrics.as_ref())
+    });
+    let baselines = s.baselines.iter().map(|b| {
+        CsvRow {
+            method: &b.method,
+            k: None,
+            sigma_color: None,
+            sigma_image: None,
+            white: None,
+            white_value: None,
+            status: "ok".into(),
+            seconds: b.seconds,
+            stored: None,
+            accepted_fraction: None,
+            fallback_pixels: None,
+            rms: None,
+            rms_display: None,
+            rel_mse: None,
+            energy_ratio: None,
         }
-        s
+        .metrics(Some(&b.metrics))
+    });
+    for row in rows.chain(baselines) {
+        w.serialize(row).expect("CSV into memory");
     }
+    String::from_utf8(w.into_inner().expect("CSV into memory")).expect("UTF-8 fields")
+}
 
-    /// RMS against wall time: every configuration, the Pareto front joined,
-    /// the baselines as labelled points. SVG text.
-    pub fn plot_time(&self) -> Result<String, String> {
-        to_svg(PLOT_SIZE, |root| self.chart_time(root))
-    }
+/// RMS against wall time: every configuration, the Pareto front joined,
+/// the baselines as labelled points. SVG text.
+pub fn plot_time(s: &Sweep) -> Result<String, String> {
+    to_svg(PLOT_SIZE, |root| chart_time(s, root))
+}
 
-    /// [`Sweep::plot_time`] as PNG bytes.
-    pub fn plot_time_png(&self) -> Result<Vec<u8>, String> {
-        to_png(PLOT_SIZE, |root| self.chart_time(root))
-    }
+/// [`Sweep::plot_time`] as PNG bytes.
+pub fn plot_time_png(s: &Sweep) -> Result<Vec<u8>, String> {
+    to_png(PLOT_SIZE, |root| chart_time(s, root))
+}
 
-    fn chart_time<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> Result<(), String> {
-        let pts: Vec<(f64, f64)> = self.ok_rows().map(|(r, m)| (r.seconds, m.rms)).collect();
-        let all_t: Vec<f64> = pts
-            .iter()
-            .map(|p| p.0)
-            .chain(self.baselines.iter().map(|b| b.seconds))
-            .map(|t| t.max(1e-4))
-            .collect();
-        let all_e = pts
-            .iter()
-            .map(|p| p.1)
-            .chain(self.baselines.iter().map(|b| b.metrics.rms));
-        let t_min = all_t.iter().copied().fold(f64::INFINITY, f64::min) / 1.5;
-        let t_max = all_t.iter().copied().fold(1e-3, f64::max) * 1.5;
-        let e_max = all_e.fold(1e-6, f64::max) * 1.1;
-        let e = |e: DrawingAreaErrorKind<_>| e.to_string();
-        root.fill(&WHITE).map_err(e)?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(
-                "RMS against wall time (filter + reconstruction)",
-                ("sans-serif", 18),
-            )
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(60)
-            .build_cartesian_2d((t_min..t_max).log_scale(), 0f64..e_max)
+fn chart_time<DB: DrawingBackend>(s: &Sweep, root: DrawingArea<DB, Shift>) -> Result<(), String> {
+    let pts: Vec<(f64, f64)> = s.ok_rows().map(|(r, m)| (r.seconds, m.rms)).collect();
+    let all_t: Vec<f64> = pts
+        .iter()
+        .map(|p| p.0)
+        .chain(s.baselines.iter().map(|b| b.seconds))
+        .map(|t| t.max(1e-4))
+        .collect();
+    let all_e = pts
+        .iter()
+        .map(|p| p.1)
+        .chain(s.baselines.iter().map(|b| b.metrics.rms));
+    let t_min = all_t.iter().copied().fold(f64::INFINITY, f64::min) / 1.5;
+    let t_max = all_t.iter().copied().fold(1e-3, f64::max) * 1.5;
+    let e_max = all_e.fold(1e-6, f64::max) * 1.1;
+    let e = |e: DrawingAreaErrorKind<_>| e.to_string();
+    root.fill(&WHITE).map_err(e)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            "RMS against wall time (filter + reconstruction)",
+            ("sans-serif", 18),
+        )
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d((t_min..t_max).log_scale(), 0f64..e_max)
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc("seconds (log scale)")
+        .y_desc("RMS")
+        .draw()
+        .map_err(e)?;
+    let blue = RGBColor(40, 90, 200);
+    chart
+        .draw_series(pts.iter().map(|&p| Circle::new(p, 3, blue.filled())))
+        .map_err(e)?
+        .label("configurations")
+        .legend(move |p| Circle::new(p, 3, blue.filled()));
+    let front: Vec<(f64, f64)> = s
+        .pareto()
+        .iter()
+        .map(|&i| (s.rows[i].seconds, s.rows[i].metrics.unwrap().rms))
+        .collect();
+    chart
+        .draw_series(LineSeries::new(front, RED.stroke_width(2)))
+        .map_err(e)?
+        .label("Pareto front")
+        .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], RED));
+    for b in &s.baselines {
+        let p = (b.seconds.max(1e-4), b.metrics.rms);
+        chart
+            .draw_series([TriangleMarker::new(p, 6, BLACK.filled())])
             .map_err(e)?;
         chart
-            .configure_mesh()
-            .x_desc("seconds (log scale)")
-            .y_desc("RMS")
-            .draw()
+            .draw_series([Text::new(b.method.clone(), p, ("sans-serif", 13))])
             .map_err(e)?;
-        let blue = RGBColor(40, 90, 200);
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(e)?;
+    root.present().map_err(e)?;
+    Ok(())
+}
+
+/// RMS against k, one line per σ_color, at σ_image = 3 (or the first
+/// σ_image swept) and the first white swept. SVG text.
+pub fn plot_k(s: &Sweep) -> Result<String, String> {
+    to_svg(PLOT_SIZE, |root| chart_k(s, root))
+}
+
+/// [`Sweep::plot_k`] as PNG bytes.
+pub fn plot_k_png(s: &Sweep) -> Result<Vec<u8>, String> {
+    to_png(PLOT_SIZE, |root| chart_k(s, root))
+}
+
+fn chart_k<DB: DrawingBackend>(s: &Sweep, root: DrawingArea<DB, Shift>) -> Result<(), String> {
+    let si = if s.rows.iter().any(|r| r.sigma_image == 3.0) {
+        3.0
+    } else {
+        s.rows.first().map_or(3.0, |r| r.sigma_image)
+    };
+    let white = s.rows.first().map(|r| r.white.clone()).unwrap_or_default();
+    let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+    for (r, m) in s.ok_rows() {
+        if r.sigma_image != si || r.white != white {
+            continue;
+        }
+        let name = format!("σ_color {}", r.sigma_color);
+        match series.iter_mut().find(|s| s.0 == name) {
+            Some(s) => s.1.push((r.k as f64, m.rms)),
+            None => series.push((name, vec![(r.k as f64, m.rms)])),
+        }
+    }
+    let k_max = s.rows.iter().map(|r| r.k).max().unwrap_or(1).max(2) as f64 * 1.5;
+    let e_max = s.ok_rows().map(|(_, m)| m.rms).fold(1e-6, f64::max) * 1.1;
+    let e = |e: DrawingAreaErrorKind<_>| e.to_string();
+    root.fill(&WHITE).map_err(e)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!("RMS against k (σ_image {si}, white {white})"),
+            ("sans-serif", 18),
+        )
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .right_y_label_area_size(0)
+        .build_cartesian_2d((1f64..k_max).log_scale(), 0f64..e_max)
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc("k")
+        .y_desc("RMS")
+        .draw()
+        .map_err(e)?;
+    for (i, (name, mut pts)) in series.into_iter().enumerate() {
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let color = Palette99::pick(i).to_rgba();
         chart
-            .draw_series(pts.iter().map(|&p| Circle::new(p, 3, blue.filled())))
+            .draw_series(LineSeries::new(pts, color.stroke_width(2)))
             .map_err(e)?
-            .label("configurations")
-            .legend(move |p| Circle::new(p, 3, blue.filled()));
-        let front: Vec<(f64, f64)> = self
-            .pareto()
-            .iter()
-            .map(|&i| (self.rows[i].seconds, self.rows[i].metrics.unwrap().rms))
-            .collect();
+            .label(name)
+            .legend(move |(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], color));
+    }
+    if let Some(mean) = s.baselines.iter().find(|b| b.method == "mean") {
+        let y = mean.metrics.rms;
         chart
-            .draw_series(LineSeries::new(front, RED.stroke_width(2)))
+            .draw_series(LineSeries::new(
+                [(1.0, y), (k_max, y)],
+                BLACK.stroke_width(1),
+            ))
             .map_err(e)?
-            .label("Pareto front")
-            .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], RED));
-        for b in &self.baselines {
-            let p = (b.seconds.max(1e-4), b.metrics.rms);
-            chart
-                .draw_series([TriangleMarker::new(p, 6, BLACK.filled())])
-                .map_err(e)?;
-            chart
-                .draw_series([Text::new(b.method.clone(), p, ("sans-serif", 13))])
-                .map_err(e)?;
-        }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(e)?;
-        root.present().map_err(e)?;
-        Ok(())
+            .label("mean (no filter)")
+            .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], BLACK));
     }
-
-    /// RMS against k, one line per σ_color, at σ_image = 3 (or the first
-    /// σ_image swept) and the first white swept. SVG text.
-    pub fn plot_k(&self) -> Result<String, String> {
-        to_svg(PLOT_SIZE, |root| self.chart_k(root))
-    }
-
-    /// [`Sweep::plot_k`] as PNG bytes.
-    pub fn plot_k_png(&self) -> Result<Vec<u8>, String> {
-        to_png(PLOT_SIZE, |root| self.chart_k(root))
-    }
-
-    fn chart_k<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> Result<(), String> {
-        let si = if self.rows.iter().any(|r| r.sigma_image == 3.0) {
-            3.0
-        } else {
-            self.rows.first().map_or(3.0, |r| r.sigma_image)
-        };
-        let white = self
-            .rows
-            .first()
-            .map(|r| r.white.clone())
-            .unwrap_or_default();
-        let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
-        for (r, m) in self.ok_rows() {
-            if r.sigma_image != si || r.white != white {
-                continue;
-            }
-            let name = format!("σ_color {}", r.sigma_color);
-            match series.iter_mut().find(|s| s.0 == name) {
-                Some(s) => s.1.push((r.k as f64, m.rms)),
-                None => series.push((name, vec![(r.k as f64, m.rms)])),
-            }
-        }
-        let k_max = self.rows.iter().map(|r| r.k).max().unwrap_or(1).max(2) as f64 * 1.5;
-        let e_max = self.ok_rows().map(|(_, m)| m.rms).fold(1e-6, f64::max) * 1.1;
-        let e = |e: DrawingAreaErrorKind<_>| e.to_string();
-        root.fill(&WHITE).map_err(e)?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(
-                format!("RMS against k (σ_image {si}, white {white})"),
-                ("sans-serif", 18),
-            )
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(60)
-            .right_y_label_area_size(0)
-            .build_cartesian_2d((1f64..k_max).log_scale(), 0f64..e_max)
-            .map_err(e)?;
-        chart
-            .configure_mesh()
-            .x_desc("k")
-            .y_desc("RMS")
-            .draw()
-            .map_err(e)?;
-        for (i, (name, mut pts)) in series.into_iter().enumerate() {
-            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let color = Palette99::pick(i).to_rgba();
-            chart
-                .draw_series(LineSeries::new(pts, color.stroke_width(2)))
-                .map_err(e)?
-                .label(name)
-                .legend(move |(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], color));
-        }
-        if let Some(mean) = self.baselines.iter().find(|b| b.method == "mean") {
-            let y = mean.metrics.rms;
-            chart
-                .draw_series(LineSeries::new(
-                    [(1.0, y), (k_max, y)],
-                    BLACK.stroke_width(1),
-                ))
-                .map_err(e)?
-                .label("mean (no filter)")
-                .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], BLACK));
-        }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 11))
-            .draw()
-            .map_err(e)?;
-        root.present().map_err(e)?;
-        Ok(())
-    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 11))
+        .draw()
+        .map_err(e)?;
+    root.present().map_err(e)?;
+    Ok(())
 }
 
 const PLOT_SIZE: (u32, u32) = (800, 500);

@@ -7,9 +7,9 @@
 use std::path::Path;
 
 use anyhow::{Result, bail};
-use pathdensity::dump::{Header, Order, PresizedDump, Record};
-use pathdensity::progress::Progress;
-use pathdensity::recon::{Film, Image, ReconFilter};
+use pathdensity_core::progress::Progress;
+use pathdensity_core::recon::{Film, Image, ReconFilter};
+use pathdensity_format::dump::{Header, Order, PresizedDump, Record};
 use rayon::prelude::*;
 
 use crate::sampler::Sampler;

@@ -9,7 +9,7 @@ use crate::material::Material;
 use crate::scene::{Environment, Primitive, Scene};
 use crate::vec3::{Vec3, v3};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SceneName {
     /// Glass and glossy-metal spheres under a small ceiling light: caustics
     /// seen through diffuse bounces (the paper's Figure 1).
@@ -24,6 +24,22 @@ pub enum SceneName {
     Sky,
     /// The glossy room with a sphere moving across it over the frames.
     Moving,
+}
+
+impl std::str::FromStr for SceneName {
+    type Err = String;
+    fn from_str(s: &str) -> Result<SceneName, String> {
+        SceneName::from_name(s).ok_or_else(|| {
+            let names: Vec<&str> = SceneName::ALL.iter().map(|s| s.as_str()).collect();
+            format!("unknown scene {s:?} (one of {})", names.join(", "))
+        })
+    }
+}
+
+impl std::fmt::Display for SceneName {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
 }
 
 impl SceneName {
@@ -45,6 +61,11 @@ impl SceneName {
             SceneName::Sky => "sky",
             SceneName::Moving => "moving",
         }
+    }
+
+    /// The scene called `name` (its [`SceneName::as_str`]).
+    pub fn from_name(name: &str) -> Option<SceneName> {
+        SceneName::ALL.into_iter().find(|s| s.as_str() == name)
     }
 
     /// Frames rendered when the user does not say.

@@ -1,9 +1,10 @@
-//! The progress bar the binary draws on a terminal (hidden otherwise).
+//! What the binaries share: the progress bar they draw on a terminal
+//! (hidden otherwise).
 
 use std::io::IsTerminal;
 
+use crate::progress::Progress;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use pathdensity::progress::Progress;
 
 pub struct Bar(ProgressBar);
 

@@ -3,24 +3,25 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result, bail};
 use exr::prelude::*;
 
-use super::atomic::AtomicFile;
-use crate::recon::{Image, stored as finite_f32};
+use crate::Error;
+use crate::atomic::AtomicFile;
+use crate::image::{Image, stored as finite_f32};
+
+type Result<T> = std::result::Result<T, Error>;
 
 /// Writes frame `frame` of `img` to `path`.
 pub fn write_frame(path: &Path, img: &Image, frame: usize) -> Result<()> {
     let px = img.frame(frame);
     let w = img.width;
-    let f = AtomicFile::new(path);
+    let f = AtomicFile::create(path)?;
     write_rgb_file(f.tmp_path(), img.width, img.height, |x, y| {
         let p = px[y * w + x];
         (finite_f32(p[0]), finite_f32(p[1]), finite_f32(p[2]))
     })
-    .with_context(|| format!("{}: cannot write EXR", path.display()))?;
+    .map_err(|e| Error::format(path, format!("cannot write EXR: {e}")))?;
     f.commit()
-        .with_context(|| format!("{}: cannot rename into place", path.display()))
 }
 
 /// Writes `NAME.exr` for a still, `NAME_0000.exr`, … for an animation.
@@ -52,7 +53,7 @@ pub fn read_rgb(path: &Path) -> Result<(usize, usize, Vec<[f64; 3]>)> {
             px[pos.y() * *w + pos.x()] = [r as f64, g as f64, b as f64];
         },
     )
-    .with_context(|| format!("{}: cannot read EXR", path.display()))?;
+    .map_err(|e| Error::format(path, format!("cannot read EXR: {e}")))?;
     let size = img.layer_data.size;
     Ok((
         size.width(),
@@ -78,13 +79,13 @@ pub fn read_reference(path: &Path, width: usize, height: usize, frames: usize) -
         };
         let (w, h, px) = read_rgb(&p)?;
         if (w, h) != (width, height) {
-            bail!(
-                "{}: reference is {w} × {h}, the dump's film is {width} × {height}",
-                p.display()
-            );
+            return Err(Error::format(
+                &p,
+                format!("reference is {w} × {h}, the dump's film is {width} × {height}"),
+            ));
         }
         if px.iter().flatten().any(|v| !v.is_finite()) {
-            bail!("{}: reference holds non-finite values", p.display());
+            return Err(Error::format(&p, "reference holds non-finite values"));
         }
         img.data[f * width * height..(f + 1) * width * height].copy_from_slice(&px);
     }

@@ -13,15 +13,14 @@ use pathdensity::recon::ReconFilter;
 use pathdensity_render::sampler::independent_seed;
 use pathdensity_render::{RenderSettings, SceneName, render_dump, render_reference};
 
-#[path = "../../../../src/bar.rs"]
-mod bar;
-use bar::Bar;
+use pathdensity::cli::Bar;
 
 /// Render a scene, its reference, and filter it.
 #[derive(Parser)]
 #[command(name = "demo", version)]
 struct Cli {
-    #[arg(long, value_enum, default_value_t = SceneName::GlossyRoom)]
+    /// glossy-room, diffuse-room, two-lights, indirect-room, sky or moving.
+    #[arg(long, default_value_t = SceneName::GlossyRoom)]
     scene: SceneName,
     #[arg(short, long, default_value = "out/demo")]
     out: PathBuf,

@@ -39,7 +39,7 @@ pub fn removed(mean: &Image, filtered: &Image) -> Image {
 /// result does not depend on threads.
 ///
 /// ```
-/// use pathdensity::recon::{Image, energy};
+/// use pathdensity_core::recon::{Image, energy};
 /// let mut mean = Image::new(5, 5, 1);
 /// mean.data[12] = [26.0; 3]; // a firefly at the centre, all else 0
 /// let filtered = Image::new(5, 5, 1);

@@ -32,7 +32,7 @@ pub fn rank(q: f64, n: u64) -> u64 {
 /// None when the sequence is empty.
 ///
 /// ```
-/// use pathdensity::quantile::{exact, rank};
+/// use pathdensity_core::quantile::{exact, rank};
 /// let v = [5.0f32, -1.0, 3.0, 3.0, 100.0];
 /// let got = exact(|| v.iter().copied(), |n| vec![0, rank(0.5, n), n - 1]);
 /// assert_eq!(got, Some(vec![-1.0, 3.0, 100.0]));

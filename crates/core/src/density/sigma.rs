@@ -318,7 +318,7 @@ impl KBest {
 /// neighbours cannot change the bits.
 ///
 /// ```
-/// use pathdensity::density::sigma::sigma;
+/// use pathdensity_core::density::sigma::sigma;
 /// assert_eq!(sigma(&[0.25, 1.0, 2.25], 3), 1.0);
 /// assert_eq!(sigma(&[0.25], 3), f64::INFINITY);
 /// ```
@@ -385,7 +385,7 @@ pub enum Sum {
 /// too widely. They cost more than they saved.
 ///
 /// ```
-/// use pathdensity::density::sigma::{Sum, classify};
+/// use pathdensity_core::density::sigma::{Sum, classify};
 /// assert_eq!(classify(&[0.25, 0.25], 2), Sum::BelowK);
 /// assert_eq!(classify(&[4.0, 1.0], 2), Sum::AtLeastK);
 /// assert_eq!(classify(&[1.0, 1.0], 2), Sum::Unknown);

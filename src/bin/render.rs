@@ -12,9 +12,7 @@ use pathdensity::recon::ReconFilter;
 use pathdensity_render::sampler::independent_seed;
 use pathdensity_render::{RenderSettings, SceneName, render_dump, render_reference};
 
-#[path = "../../../src/bar.rs"]
-mod bar;
-use bar::Bar;
+use pathdensity::cli::Bar;
 
 #[derive(Clone, Copy, ValueEnum)]
 enum OrderArg {
@@ -32,7 +30,8 @@ enum Recon {
 #[derive(Parser)]
 #[command(name = "render", version)]
 struct Cli {
-    #[arg(long, value_enum)]
+    /// glossy-room, diffuse-room, two-lights, indirect-room, sky or moving.
+    #[arg(long)]
     scene: SceneName,
     #[arg(long, default_value_t = 128)]
     width: u32,

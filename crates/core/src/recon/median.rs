@@ -9,7 +9,7 @@ use crate::dump::{Header, Record, Validity};
 ///
 /// ```
 /// let mut v = [3.0, 1.0, 4.0, 1.5];
-/// assert_eq!(pathdensity::recon::median::median(&mut v), 2.25);
+/// assert_eq!(pathdensity_core::recon::median::median(&mut v), 2.25);
 /// ```
 pub fn median(v: &mut [f64]) -> f64 {
     let n = v.len();

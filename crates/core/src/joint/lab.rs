@@ -37,7 +37,7 @@ fn f(u: f64) -> f64 {
 /// CIELAB of linear RGB for a white of luminance `white` (docs/filter.md §1's Y_w).
 ///
 /// ```
-/// let lab = pathdensity::joint::lab::rgb_to_lab([1.0, 1.0, 1.0], 1.0);
+/// let lab = pathdensity_core::joint::lab::rgb_to_lab([1.0, 1.0, 1.0], 1.0);
 /// assert!((lab[0] - 100.0).abs() < 1e-4 && lab[1].abs() < 1e-2 && lab[2].abs() < 1e-2);
 /// ```
 #[inline]

@@ -311,7 +311,7 @@ fn configuration(
 }
 
 impl Sweep {
-    pub(crate) fn ok_rows(&self) -> impl Iterator<Item = (&Row, &Metrics)> {
+    pub fn ok_rows(&self) -> impl Iterator<Item = (&Row, &Metrics)> {
         self.rows
             .iter()
             .filter_map(|r| r.metrics.as_ref().map(|m| (r, m)))

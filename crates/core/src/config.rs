@@ -9,7 +9,7 @@
 //! below; an unknown field is an error.
 //!
 //! ```
-//! use pathdensity::config::{FilterConfig, White};
+//! use pathdensity_core::config::{FilterConfig, White};
 //! let c: FilterConfig = serde_json::from_str(r#"{"k": 20, "white": "auto"}"#).unwrap();
 //! assert_eq!(c.k, 20);
 //! assert_eq!(c.white, White::Auto);

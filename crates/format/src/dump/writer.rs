@@ -5,7 +5,7 @@ use std::path::Path;
 use memmap2::MmapMut;
 
 use super::{DumpError, Header, Record};
-use crate::io::atomic::AtomicFile;
+use crate::atomic::AtomicFile;
 
 /// Streams records into a new dump. The header's `sample_count` is patched
 /// on [`DumpWriter::finish`], which also renames the file into place.
@@ -19,8 +19,11 @@ pub struct DumpWriter {
 impl DumpWriter {
     pub fn create(path: impl AsRef<Path>, header: Header) -> Result<DumpWriter, DumpError> {
         let path = path.as_ref();
-        let file = AtomicFile::new(path);
-        let f = file.create().map_err(|e| DumpError::io(path, e))?;
+        let file = AtomicFile::create(path)?;
+        let f = file
+            .file()
+            .try_clone()
+            .map_err(|e| DumpError::io(path, e))?;
         let mut out = BufWriter::with_capacity(1 << 20, f);
         let prefix = header
             .prefix_bytes()
@@ -63,7 +66,7 @@ impl DumpWriter {
         f.seek(SeekFrom::Start(0)).map_err(ioe)?;
         f.write_all(&prefix).map_err(ioe)?;
         f.sync_all().map_err(ioe)?;
-        self.file.commit().map_err(ioe)?;
+        self.file.commit()?;
         Ok(self.header)
     }
 }
@@ -82,14 +85,14 @@ impl PresizedDump {
         let prefix = header
             .prefix_bytes()
             .map_err(|p| DumpError::format(path, p))?;
-        let file = AtomicFile::new(path);
-        let mut f = file.create().map_err(|e| DumpError::io(path, e))?;
+        let file = AtomicFile::create(path)?;
+        let mut f = file.file();
         let total = prefix.len() as u64 + 24 * header.sample_count;
         f.set_len(total).map_err(|e| DumpError::io(path, e))?;
         f.write_all(&prefix).map_err(|e| DumpError::io(path, e))?;
         let map = if header.sample_count > 0 {
             // SAFETY: the temporary file is private to this writer.
-            Some(unsafe { MmapMut::map_mut(&f) }.map_err(|e| DumpError::io(path, e))?)
+            Some(unsafe { MmapMut::map_mut(f) }.map_err(|e| DumpError::io(path, e))?)
         } else {
             None
         };
@@ -112,6 +115,6 @@ impl PresizedDump {
         if let Some(m) = self.map.take() {
             m.flush().map_err(|e| DumpError::io(&dest, e))?;
         }
-        self.file.commit().map_err(|e| DumpError::io(&dest, e))
+        self.file.commit()
     }
 }

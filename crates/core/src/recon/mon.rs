@@ -39,7 +39,7 @@ pub fn sorted_group_means(ch: &Channels, groups: usize) -> Vec<[f64; 3]> {
 /// of the two middle ones. 0 for no samples.
 ///
 /// ```
-/// use pathdensity::recon::mon::median_of_means;
+/// use pathdensity_core::recon::mon::median_of_means;
 /// // Six samples in three groups: means 1, 1 and 149.5 (the firefly's group).
 /// let v = vec![1.0, 1.0, 298.0, 1.0, 1.0, 1.0];
 /// let ch = [v.clone(), v.clone(), v];
@@ -80,7 +80,7 @@ pub fn gini(sorted: &[f64]) -> f64 {
 /// group holds everything) gives the median group.
 ///
 /// ```
-/// use pathdensity::recon::mon::gini_median_of_means;
+/// use pathdensity_core::recon::mon::gini_median_of_means;
 /// // Equal groups: nothing to trim, the mean of the means.
 /// let ch = std::array::from_fn(|_| vec![2.0, 2.0, 2.0, 2.0]);
 /// assert_eq!(gini_median_of_means(&ch, 4), [2.0; 3]);

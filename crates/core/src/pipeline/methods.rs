@@ -95,7 +95,7 @@ impl std::fmt::Display for Method {
 /// list of names.
 ///
 /// ```
-/// use pathdensity::config::{Method, MethodSet};
+/// use pathdensity_core::config::{Method, MethodSet};
 /// let s: MethodSet = [Method::Rwmc].into_iter().collect();
 /// let v: Vec<Method> = s.iter().collect();
 /// assert_eq!(v, [Method::Mean, Method::Filtered, Method::Rwmc]);

@@ -10,6 +10,7 @@ pub mod robust;
 pub mod rwmc;
 
 use crate::dump::{Header, Record, Validity};
+pub use pathdensity_format::image::{Image, stored};
 
 /// The reconstruction filter W (the paper's sensor response).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -27,46 +28,6 @@ impl ReconFilter {
             s: 0.5,
             radius: 1.5,
         }
-    }
-}
-
-/// A value as images store it: rounded to f32, clamped to the finite range.
-#[inline]
-pub fn stored(v: f64) -> f32 {
-    (v as f32).clamp(-f32::MAX, f32::MAX)
-}
-
-/// An RGB image per frame, in f64: `data[(frame · height + row) · width + col]`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Image {
-    pub width: usize,
-    pub height: usize,
-    pub frames: usize,
-    pub data: Vec<[f64; 3]>,
-}
-
-impl Image {
-    pub fn new(width: usize, height: usize, frames: usize) -> Image {
-        Image {
-            width,
-            height,
-            frames,
-            data: vec![[0.0; 3]; width * height * frames],
-        }
-    }
-
-    pub fn for_header(h: &Header) -> Image {
-        Image::new(h.width as usize, h.height as usize, h.frames as usize)
-    }
-
-    pub fn pixels_per_frame(&self) -> usize {
-        self.width * self.height
-    }
-
-    /// The pixels of one frame.
-    pub fn frame(&self, f: usize) -> &[[f64; 3]] {
-        let n = self.pixels_per_frame();
-        &self.data[f * n..(f + 1) * n]
     }
 }
 

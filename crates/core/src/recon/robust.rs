@@ -11,7 +11,7 @@ use crate::dump::Header;
 /// mean; `alpha` must lie in [0, 0.5). 0 for an empty slice.
 ///
 /// ```
-/// use pathdensity::recon::robust::trimmed_mean;
+/// use pathdensity_core::recon::robust::trimmed_mean;
 /// // n = 10, α = 0.1: drop one value at each end.
 /// let mut v = [9.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 100.0];
 /// assert_eq!(trimmed_mean(&mut v, 0.1), 5.5);

@@ -46,7 +46,7 @@ impl RwmcParams {
     /// past the last cascade the upper weight clamps the sample.
     ///
     /// ```
-    /// use pathdensity::recon::rwmc::RwmcParams;
+    /// use pathdensity_core::recon::rwmc::RwmcParams;
     /// let p = RwmcParams::default();
     /// assert_eq!(p.split(0.5), (0, 1.0, 0.0)); // below s₀: all in cascade 0
     /// assert_eq!(p.split(8.0), (1, 1.0, 0.0)); // exactly s₀b: cascade 1

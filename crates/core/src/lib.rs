@@ -1,0 +1,29 @@
+//! pathdensity-core: density-based outlier rejection for Monte Carlo
+//! sample dumps (DeCoro, Weyrich & Rusinkiewicz, Pacific Graphics 2010).
+//!
+//! The modules follow the pipeline: [`dump`] (the format, re-exported from
+//! `pathdensity-format`) → [`joint`] (the joint image–colour–time space) →
+//! [`density`] (the filter) → [`recon`] and [`imagespace`] (images) →
+//! [`metrics`]. [`config`] is the one configuration of a run and
+//! [`pipeline`] runs it with no file I/O; [`sweep`] and [`regress`] are
+//! built on it. No command line, plots or HTML here.
+
+pub use pathdensity_format::dump;
+
+/// Files in and out (from `pathdensity-format`).
+pub mod io {
+    pub use pathdensity_format::{atomic, exr};
+}
+
+pub mod config;
+pub mod density;
+pub mod imagespace;
+pub mod joint;
+pub mod metrics;
+pub mod pipeline;
+pub mod progress;
+pub mod quantile;
+pub mod recon;
+pub mod regress;
+pub mod sweep;
+pub mod synth;
