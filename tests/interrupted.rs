@@ -13,7 +13,7 @@ use pathdensity::io::exr::read_rgb;
 use pathdensity::synth::SynthParams;
 
 /// Every file under a final name in `dir` is complete: images decode,
-/// JSON parses. Temporary files (`.NAME.tmp-PID`) are ignored.
+/// JSON parses. Temporary files (`.NAME.XXXXXX.tmp`) are ignored.
 fn every_final_file_is_complete(dir: &Path) -> usize {
     let mut n = 0;
     for e in std::fs::read_dir(dir).unwrap() {

@@ -46,8 +46,8 @@ pub(super) struct Hit {
 pub(super) const SUB_BLOCK: usize = 256;
 
 /// Records per job of the parallel search: small, because the last job of
-/// a batch is waited for (pass-major, k = 50: 256 records took 66 µs on
-/// average, and jobs of 64 cut the threads' idle time from ~9% to ~6%).
+/// a batch is waited for, and small jobs leave less idle time at its end
+/// (docs/BENCHMARKS.md, "The replay's constants").
 pub(super) const SEARCH_BLOCK: usize = 64;
 
 /// Deferred searches in a row before a worker searches again to refresh

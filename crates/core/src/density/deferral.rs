@@ -4,8 +4,9 @@
 /// How many searches the in-order pass takes over from the parallel one.
 ///
 /// A sample searched in parallel against the lagging T mostly needs a
-/// recheck in order as well (at k = 50 on the benchmark dump, 2.4 M of
-/// 4.2 M do). Searching it in order instead, against the current T, costs
+/// recheck in order as well (most do at large k; docs/BENCHMARKS.md,
+/// "The replay's constants").
+/// Searching it in order instead, against the current T, costs
 /// the in-order pass a little more than the recheck would but saves the
 /// parallel search altogether. With one thread that is pure gain; with
 /// more, the in-order pass must not become the bottleneck, so the share

@@ -34,11 +34,9 @@ use crate::progress::Progress;
 
 /// Waits for `flag` without parking the thread: runs pending pool jobs,
 /// else yields the core. Both sides of a batch wait this way for each
-/// other, so neither is parked at the batch's end. rayon parks a thread
-/// after ~32 idle rounds; on the benchmark machine (a 2-core VM) the
-/// search of a batch then started 0.8 µs late at the median but 43 µs at
-/// the 90th percentile and 0.8 ms at the 99th, 42 ms of a 0.68 s replay
-/// (pixel-major, k = 10, 2 threads).
+/// other, so neither is parked at the batch's end: rayon parks a thread
+/// after some idle rounds, and a parked thread wakes late for the next
+/// batch (docs/BENCHMARKS.md, "The replay's constants").
 pub(super) fn wait_for(flag: &AtomicBool) {
     while !flag.load(Acquire) {
         if rayon::yield_now() != Some(rayon::Yield::Executed) {

@@ -43,8 +43,8 @@ pub(super) struct Seeds {
 /// What seeds are cached by: the pixel when the cache can hold every
 /// pixel's, else the grid cell. A pass-major dump brings a worker back to a
 /// pixel once per pass, a batch holding one sample of it, and seeds found
-/// for the pixel's previous sample prove far more than a neighbour's (at
-/// k = 50 on the benchmark dump, 1.8× faster than seeds by cell).
+/// for the pixel's previous sample prove far more than a neighbour's
+/// (docs/BENCHMARKS.md, "The replay's constants").
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct SeedKeys {
     pub(super) by_pixel: bool,
