@@ -51,7 +51,7 @@ pub(super) const SUB_BLOCK: usize = 256;
 pub(super) const SEARCH_BLOCK: usize = 64;
 
 /// Deferred searches in a row before a worker searches again to refresh
-/// its seeds (see [`Deferral`]).
+/// its seeds (see [`super::deferral::Deferral`]).
 pub(super) const REFRESH: u32 = 16;
 
 /// One batch's records after the parallel search.
@@ -230,7 +230,7 @@ pub(super) struct Worker<S> {
     pub(super) kb: KBest,
     pub(super) scratch: S,
     pub(super) seeds: Seeds,
-    /// Accumulated share of deferrable searches (see [`Deferral`]).
+    /// Accumulated share of deferrable searches (see [`super::deferral::Deferral`]).
     pub(super) share: f64,
 }
 

@@ -5,14 +5,15 @@
 //!
 //! [`plain`] is that algorithm as written, one sample at a time: the
 //! specification. [`run`] is the same replay made fast and parallel, with
-//! the same bytes for any thread count: [`schedule`] overlaps a parallel
-//! search of each batch ([`batch`], accelerated by [`seeds`]) with the
-//! in-order decisions ([`in_order`]), balanced by [`deferral`].
+//! the same bytes for any thread count: `schedule` overlaps a parallel
+//! search of each batch (`batch`, accelerated by `seeds`) with the
+//! in-order decisions (`in_order`), balanced by `deferral`.
 
 mod batch;
 mod deferral;
 mod in_order;
 pub mod index;
+mod kbest;
 pub mod plain;
 mod schedule;
 mod seeds;
@@ -51,7 +52,7 @@ pub struct ReplayOptions {
     pub exact_sigma: bool,
     /// Samples per parallel batch.
     pub batch: usize,
-    /// The share of searches left to the in-order pass (see [`Deferral`]);
+    /// The share of searches left to the in-order pass (see `deferral::Deferral`);
     /// `None` adapts it to balance the threads.
     pub deferral: Option<f64>,
 }

@@ -12,7 +12,7 @@
 //! which need no T; a batch is sorted into its search order when its
 //! search starts). Searches
 //! likely to fail against that copy may be left to the in-order pass
-//! ([`Deferral`]), which searches the current T instead. The final pass
+//! ([`super::deferral::Deferral`]), which searches the current T instead. The final pass
 //! searches a fixed T, so it is parallel as is.
 
 use std::sync::Arc;

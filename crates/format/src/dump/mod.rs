@@ -21,5 +21,5 @@ pub fn data_offset(header_len: usize) -> usize {
     (16 + header_len).div_ceil(64) * 64
 }
 
-/// Everything that can be wrong with a dump file (the crate's [`Error`]).
+/// Everything that can be wrong with a dump file (the crate's [`crate::Error`]).
 pub use crate::Error as DumpError;
