@@ -20,6 +20,7 @@ pub mod density;
 pub mod imagespace;
 pub mod joint;
 pub mod metrics;
+pub mod par;
 pub mod pipeline;
 pub mod progress;
 pub mod quantile;

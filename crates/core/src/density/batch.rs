@@ -4,7 +4,7 @@
 
 use std::sync::{Arc, Mutex};
 
-use rayon::prelude::*;
+use crate::par::prelude::*;
 
 use super::index::{Found, NeighbourIndex};
 use super::seeds::{SeedCache, SeedKeys, Seeds};
@@ -181,7 +181,7 @@ impl<const D: usize> Batch<D> {
                 // Each thread keeps its state from job to job and batch
                 // to batch (buffers, the tile's block, the seeds): the
                 // lock is only ever taken by the thread it belongs to.
-                let slot = rayon::current_thread_index().unwrap_or(0) % workers.len();
+                let slot = crate::par::current_thread_index().unwrap_or(0) % workers.len();
                 let mut guard = workers[slot].lock().unwrap_or_else(|e| e.into_inner());
                 let Worker {
                     kb,
@@ -247,7 +247,7 @@ impl<S: Default> Worker<S> {
     /// One per thread of the current rayon pool, sharing one seed cache.
     pub(super) fn per_thread(k: usize, slots: usize) -> Vec<Mutex<Worker<S>>> {
         let cache = Arc::new(SeedCache::new(k, slots));
-        (0..rayon::current_num_threads())
+        (0..crate::par::current_num_threads())
             .map(|_| Mutex::new(Worker::new(k, cache.clone())))
             .collect()
     }

@@ -25,7 +25,7 @@ impl Deferral {
                 share: s.clamp(0.0, 1.0),
                 fixed: true,
             },
-            None if rayon::current_num_threads() == 1 => Deferral {
+            None if crate::par::current_num_threads() == 1 => Deferral {
                 share: 1.0,
                 fixed: true,
             },

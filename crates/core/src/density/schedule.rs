@@ -17,10 +17,10 @@
 
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
-use std::sync::atomic::Ordering::{Acquire, Release};
+use std::sync::atomic::Ordering::Release;
 use std::time::Instant;
 
-use rayon::prelude::*;
+use crate::par::prelude::*;
 
 use super::batch::{Batch, SUB_BLOCK, Worker};
 use super::deferral::Deferral;
@@ -31,19 +31,6 @@ use super::sigma::{Goal, KBest, Verdict};
 use super::{Decision, FilterCounts, FilterResult, Params};
 use crate::dump::{Header, Record};
 use crate::progress::Progress;
-
-/// Waits for `flag` without parking the thread: runs pending pool jobs,
-/// else yields the core. Both sides of a batch wait this way for each
-/// other, so neither is parked at the batch's end: rayon parks a thread
-/// after some idle rounds, and a parked thread wakes late for the next
-/// batch (docs/BENCHMARKS.md, "The replay's constants").
-pub(super) fn wait_for(flag: &AtomicBool) {
-    while !flag.load(Acquire) {
-        if rayon::yield_now() != Some(rayon::Yield::Executed) {
-            std::thread::yield_now();
-        }
-    }
-}
 
 pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
     records: &[Record],
@@ -120,9 +107,9 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
         // the join thus mostly finishes last, and nobody sleeps on a latch.
         // Each side then waits for the other ([`wait_for`]), helping with
         // what is left, so the searching thread is awake for the next batch.
-        let ((in_order, deferred), search) = rayon::join(
+        let ((in_order, deferred), search) = crate::par::join(
             || {
-                let in_order = rayon::join(
+                let in_order = crate::par::join(
                     || {
                         let t = Instant::now();
                         let deferred = decide_in_order(
@@ -145,7 +132,7 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
                 )
                 .0;
                 decided.store(true, Release);
-                wait_for(searched);
+                crate::par::wait_for(searched);
                 in_order
             },
             || {
@@ -155,7 +142,7 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
                 }
                 let search = t.elapsed().as_secs_f64();
                 searched.store(true, Release);
-                wait_for(decided);
+                crate::par::wait_for(decided);
                 search
             },
         );

@@ -4,7 +4,7 @@
 //! colours (CIE76, with the joint space's white), the window clipped at the
 //! border and the result normalised by the sum of the weights used.
 
-use rayon::prelude::*;
+use crate::par::prelude::*;
 
 use crate::config::FilterConfig;
 use crate::joint::lab::rgb_to_lab;

@@ -2,7 +2,7 @@
 //! median of the pixel and its 8 neighbours that hold samples, the window
 //! clipped at the border (an even count takes the mean of the middle two).
 
-use rayon::prelude::*;
+use crate::par::prelude::*;
 
 use crate::recon::Image;
 use crate::recon::median::median;

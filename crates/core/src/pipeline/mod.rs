@@ -25,7 +25,7 @@ pub enum PipelineError {
     #[error("invalid configuration: {0}")]
     Config(#[from] ConfigError),
     #[error("cannot start the worker threads: {0}")]
-    Threads(#[from] rayon::ThreadPoolBuildError),
+    Threads(#[from] crate::par::ThreadPoolBuildError),
 }
 
 /// How to run, beyond the configuration: nothing here changes an image.
@@ -80,10 +80,17 @@ impl Run {
 }
 
 /// A thread pool of `threads` workers (0: one per core).
-pub fn thread_pool(threads: usize) -> Result<rayon::ThreadPool, PipelineError> {
-    Ok(rayon::ThreadPoolBuilder::new()
+/// Without the `parallel` feature, the one thread there is.
+pub fn thread_pool(threads: usize) -> Result<crate::par::ThreadPool, PipelineError> {
+    #[cfg(feature = "parallel")]
+    return Ok(rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
-        .build()?)
+        .build()?);
+    #[cfg(not(feature = "parallel"))]
+    {
+        let _ = threads;
+        Ok(crate::par::ThreadPool)
+    }
 }
 
 /// The white luminance `config` asks for on these records.

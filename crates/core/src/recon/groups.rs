@@ -8,7 +8,7 @@
 //! never copied, and per-pixel work runs in parallel with the same result
 //! for any thread count.
 
-use rayon::prelude::*;
+use crate::par::prelude::*;
 
 use crate::dump::{Header, Record, Validity};
 

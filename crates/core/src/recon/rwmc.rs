@@ -10,7 +10,7 @@
 //! Eq. 12–13) or the pixel is already bright (colour reliability).
 //! Samples are binned by the pixel they fall in (box reconstruction).
 
-use rayon::prelude::*;
+use crate::par::prelude::*;
 
 use super::Image;
 use crate::config::FilterConfig;
