@@ -38,3 +38,14 @@ impl Progress for Bar {
         self.0.finish_and_clear();
     }
 }
+
+/// On SIGINT or SIGTERM (Ctrl-C, a scheduler's pre-emption), removes every
+/// temporary file and staging folder of this process and exits with 130:
+/// an interrupted run leaves its outputs as they were and nothing hidden
+/// behind. (SIGKILL cannot be caught: it may leave a temporary behind.)
+pub fn clean_up_on_signals() {
+    let _ = ctrlc::set_handler(|| {
+        crate::io::atomic::remove_temporaries();
+        std::process::exit(130);
+    });
+}

@@ -129,6 +129,7 @@ enum Command {
         json: bool,
     },
     /// Run the path-density filter and write images and a report.
+    #[command(allow_negative_numbers = true)]
     Filter {
         dump: PathBuf,
         #[arg(short, long)]
@@ -156,6 +157,7 @@ enum Command {
         no_html: bool,
     },
     /// Run the filter over a grid of k, σ_color, σ_image and white.
+    #[command(allow_negative_numbers = true)]
     Sweep {
         dump: PathBuf,
         #[arg(long)]
@@ -365,6 +367,7 @@ const EXIT_USAGE: u8 = 2;
 const EXIT_DRIFT: u8 = 3;
 
 fn main() -> ExitCode {
+    pathdensity::cli::clean_up_on_signals();
     match run(Cli::parse()) {
         Ok(code) => code,
         Err(e) => {

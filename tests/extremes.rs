@@ -11,9 +11,11 @@ use std::path::Path;
 use common::*;
 use pathdensity::commands::filter::{FilterOptions, filter};
 use pathdensity::config::White;
+use pathdensity::density::{self, IndexKind, ReplayOptions};
 use pathdensity::dump::{Header, Record};
 use pathdensity::io::exr::read_rgb;
 use pathdensity::joint::JointSpace;
+use pathdensity::progress::Silent;
 use pathdensity::report::FilterReport;
 
 /// Runs `filter` with every method and the HTML report, and checks the
@@ -159,11 +161,25 @@ fn k_of_one_and_k_above_the_sample_count() {
     let h = header(5, 5, 1);
     let recs = field(5, 5, 4, |s| [0.3 + 0.01 * s as f32, 0.3, 0.2]);
     run(&h, &recs, 1, JointSpace::default());
-    // k > N: every σ is +∞, so every sample is stored and rejected, and
-    // every pixel falls back to its median.
-    let (report, dec) = run(&h, &recs, 1000, JointSpace::default());
-    assert!(dec.iter().all(|&d| d == 3));
-    assert_eq!(report.fallback_pixels, 25);
+    // k ≥ N: every σ is +∞, so the replay stores and rejects every sample…
+    let options = ReplayOptions::default();
+    let space = JointSpace::default();
+    let dec = density::run(&recs, &h, &space, 1000, IndexKind::Grid, &options, &Silent);
+    assert!(dec.decisions.iter().all(|&d| d == 3));
+    // … which `filter` refuses before any work, naming k and the count.
+    let e = filter_error(&h, &recs, 100);
+    assert!(e.contains("k 100 needs more than 100 valid samples"), "{e}");
+}
+
+/// Runs `filter` on `recs` with `k`, expecting a refusal; returns it.
+fn filter_error(h: &Header, recs: &[Record], k: usize) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let dump = write_dump(dir.path(), "d.pds", h, recs);
+    let mut o = FilterOptions::new(&dump, dir.path().join("out"));
+    o.config.k = k;
+    let e = format!("{:#}", filter(&o).unwrap_err());
+    assert!(!dir.path().join("out").exists(), "nothing written");
+    e
 }
 
 #[test]
@@ -191,14 +207,14 @@ fn tiny_and_empty_films() {
         2,
         JointSpace::default(),
     );
-    run(
-        &one,
-        &[Record::new(0.5, 0.5, 0.0, [2.0, 1.0, 0.0])],
-        10,
-        JointSpace::default(),
-    );
-    let (report, _) = run(&header(4, 3, 1), &[], 10, JointSpace::default());
-    assert_eq!(report.empty_pixels, 12);
+    let e = filter_error(&one, &[Record::new(0.5, 0.5, 0.0, [2.0, 1.0, 0.0])], 10);
+    assert!(e.contains("needs more than 1 valid samples"), "{e}");
+    // A dump with no valid sample is an error, not a black image.
+    let e = filter_error(&header(4, 3, 1), &[], 10);
+    assert!(e.contains("no valid sample"), "{e}");
+    let nan = [Record::new(0.5, 0.5, 0.0, [f32::NAN, 1.0, 0.0]); 20];
+    let e = filter_error(&one, &nan, 10);
+    assert!(e.contains("no valid sample"), "{e}");
 }
 
 #[test]

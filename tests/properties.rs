@@ -99,7 +99,11 @@ proptest! {
             o.sigma_map = true;
             o.decisions = Some(out.join("decisions.bin"));
             std::fs::create_dir_all(&out).unwrap();
-            filter(&o).unwrap();
+            if let Err(e) = filter(&o) {
+                // Fewer valid samples than k + 1: refused, on any thread count.
+                assert!(format!("{e:#}").contains("valid samples"), "{e:#}");
+                return Vec::new();
+            }
             let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(&out)
                 .unwrap()
                 .map(|e| e.unwrap().path())
@@ -110,7 +114,8 @@ proptest! {
             files
         };
         let one = run(1, density::IndexKind::Grid, "t1");
-        prop_assert!(one.len() >= 8, "{:?}", one.iter().map(|f| &f.0).collect::<Vec<_>>());
+        let names: Vec<&String> = one.iter().map(|f| &f.0).collect();
+        prop_assert!(one.len() >= 8 || one.is_empty(), "{:?}", names);
         prop_assert!(one == run(3, density::IndexKind::Grid, "t3"));
         prop_assert!(one == run(3, density::IndexKind::Kdtree, "kd"));
     }

@@ -4,11 +4,12 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 
 use crate::config::{FilterConfig, Method};
 use crate::dump::DumpReader;
-use crate::io::{atomic, exr, png};
+use crate::io::atomic::{self, Staging};
+use crate::io::{exr, png};
 use crate::pipeline::{self, RunOptions};
 use crate::progress::{Progress, Silent};
 use crate::recon::Image;
@@ -50,12 +51,16 @@ impl FilterOptions {
     }
 }
 
-/// Fails early, before any work, when `dir` cannot take our files.
-fn prepare_out_dir(dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("{}: cannot create output directory", dir.display()))?;
-    atomic::AtomicFile::create(dir.join("probe"))
-        .with_context(|| format!("{}: output directory is not writable", dir.display()))?;
+/// Checks the decisions file can be written, before any work.
+fn check_decisions_path(p: &Path) -> Result<()> {
+    if p.is_dir() {
+        bail!("{}: --decisions names a directory", p.display());
+    }
+    if let Some(parent) = p.parent().filter(|d| !d.as_os_str().is_empty())
+        && !parent.is_dir()
+    {
+        bail!("{}: no such directory for --decisions", parent.display());
+    }
     Ok(())
 }
 
@@ -83,7 +88,12 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
         .as_ref()
         .map(|p| exr::read_reference(p, h.width as usize, h.height as usize, h.frames as usize))
         .transpose()?;
-    prepare_out_dir(&opts.out_dir)?;
+    if let Some(p) = &opts.decisions {
+        check_decisions_path(p)?;
+    }
+    // Everything is written into a staging folder and swapped in at the
+    // end: OUTDIR holds exactly one complete run at any time.
+    let staging = Staging::create(&opts.out_dir)?;
     let open_seconds = t_start.elapsed().as_secs_f64();
 
     let records = dump.records();
@@ -101,7 +111,7 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
     )?;
 
     let t_write = Instant::now();
-    let dir = &opts.out_dir;
+    let dir = staging.path();
     let mut outputs = Vec::new();
     for e in &run.images {
         outputs.extend(exr::write_image(dir, e.method.name(), &e.image)?);
@@ -109,9 +119,6 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
     outputs.extend(exr::write_image(dir, "rejected", &run.removed)?);
     if let Some(img) = &run.sigma_image {
         outputs.extend(exr::write_image(dir, "sigma", img)?);
-    }
-    if let Some(p) = &opts.decisions {
-        atomic::write_bytes(p, &run.decisions)?;
     }
     let slice_row = opts.html.then(|| opts.slice_row.unwrap_or(h.height / 2));
     let sigma_scale = run.sigma_image.as_ref().and_then(plots::sigma_scale);
@@ -144,6 +151,7 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
         sigma_scale,
         slice_row,
         outputs: Vec::new(),
+        warnings: run.warnings.clone(),
     };
     if opts.html {
         let exposure = opts.config.exposure;
@@ -208,5 +216,10 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
     report.timing.total_seconds = t_start.elapsed().as_secs_f64();
     let json = serde_json::to_vec_pretty(&report).expect("the report serialises");
     atomic::write_bytes(&dir.join("report.json"), &json)?;
+    staging.commit()?;
+    // After the swap: the decisions file may be inside OUTDIR.
+    if let Some(p) = &opts.decisions {
+        atomic::write_bytes(p, &run.decisions)?;
+    }
     Ok(report)
 }

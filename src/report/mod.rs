@@ -74,6 +74,9 @@ pub struct FilterReport {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub slice_row: Option<u32>,
     pub outputs: Vec<String>,
+    /// What the user should hear (most samples rejected, most pixels
+    /// falling back).
+    pub warnings: Vec<String>,
 }
 
 impl FilterReport {
@@ -135,6 +138,9 @@ impl FilterReport {
         }
         if best.is_some() {
             s += "  (* lowest RMS)\n";
+        }
+        for w in &self.warnings {
+            s += &format!("  warning: {w}\n");
         }
         // rwmc's counting reliability is at most spp / κ: below κ samples
         // per pixel no cascade is fully trusted and the image darkens.

@@ -5,10 +5,41 @@
 use std::fs::File;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
-use tempfile::NamedTempFile;
+use tempfile::{NamedTempFile, TempDir};
 
 use crate::Error;
+
+/// Every temporary file and staging folder this process has open, so that
+/// a signal handler can remove them ([`remove_temporaries`]).
+static TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn register(p: &Path) {
+    let mut t = TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner());
+    t.push(p.to_path_buf());
+}
+
+fn unregister(p: &Path) {
+    let mut t = TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(i) = t.iter().rposition(|q| q == p) {
+        t.swap_remove(i);
+    }
+}
+
+/// Removes every temporary file and staging folder still open: what a
+/// SIGINT or SIGTERM handler calls before the process exits, since an
+/// exiting process runs no destructor. Safe to call from any thread.
+pub fn remove_temporaries() {
+    let t = TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner());
+    for p in t.iter() {
+        if p.is_dir() {
+            let _ = std::fs::remove_dir_all(p);
+        } else {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}
 
 /// A file being written under a temporary name (`.NAME.XXXXXX.tmp`) beside
 /// its destination, renamed into place by [`AtomicFile::commit`]. Dropped
@@ -16,7 +47,8 @@ use crate::Error;
 /// leaves the destination untouched (a killed process may leave the
 /// temporary behind; its name never looks like an output).
 pub struct AtomicFile {
-    tmp: NamedTempFile,
+    /// `None` once committed.
+    tmp: Option<NamedTempFile>,
     dest: PathBuf,
 }
 
@@ -38,20 +70,28 @@ impl AtomicFile {
             .suffix(".tmp")
             .tempfile_in(dir)
             .map_err(|e| Error::io(&dest, e))?;
-        Ok(AtomicFile { tmp, dest })
+        register(tmp.path());
+        Ok(AtomicFile {
+            tmp: Some(tmp),
+            dest,
+        })
+    }
+
+    fn tmp(&self) -> &NamedTempFile {
+        self.tmp.as_ref().expect("not committed")
     }
 
     pub fn file(&self) -> &File {
-        self.tmp.as_file()
+        self.tmp().as_file()
     }
 
     pub fn file_mut(&mut self) -> &mut File {
-        self.tmp.as_file_mut()
+        self.tmp.as_mut().expect("not committed").as_file_mut()
     }
 
     /// The temporary path, for writers that open files themselves.
     pub fn tmp_path(&self) -> &Path {
-        self.tmp.path()
+        self.tmp().path()
     }
 
     pub fn dest(&self) -> &Path {
@@ -59,13 +99,132 @@ impl AtomicFile {
     }
 
     /// Renames the temporary file to its destination.
-    pub fn commit(self) -> Result<(), Error> {
-        let dest = self.dest;
-        self.tmp
-            .persist(&dest)
-            .map(|_| ())
-            .map_err(|e| Error::io(&dest, e.error))
+    pub fn commit(mut self) -> Result<(), Error> {
+        let tmp = self.tmp.take().expect("committed once");
+        let tmp_path = tmp.path().to_path_buf();
+        let done = tmp.persist(&self.dest).map(|_| ());
+        unregister(&tmp_path);
+        done.map_err(|e| Error::io(&self.dest, e.error))
     }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        // Uncommitted: the temporary file removes itself.
+        if let Some(tmp) = &self.tmp {
+            unregister(tmp.path());
+        }
+    }
+}
+
+/// A folder of outputs built beside its destination under a temporary
+/// name (`.NAME.XXXXXX.staging`) and swapped in whole by
+/// [`Staging::commit`], so the destination always holds exactly one
+/// complete run: the previous one until the swap, the new one after.
+/// Dropped uncommitted, the staging folder is removed.
+pub struct Staging {
+    dir: Option<TempDir>,
+    dest: PathBuf,
+}
+
+impl Staging {
+    /// Creates the staging folder (and the destination's parent).
+    pub fn create(dest: impl AsRef<Path>) -> Result<Staging, Error> {
+        let dest = dest.as_ref().to_path_buf();
+        if dest.exists() && !dest.is_dir() {
+            return Err(Error::format(&dest, "exists and is not a directory"));
+        }
+        let name = dest
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .ok_or_else(|| Error::format(&dest, "is not a folder name"))?;
+        let parent = match dest.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        std::fs::create_dir_all(&parent)
+            .map_err(|e| Error::format(&dest, format!("cannot create its parent folder: {e}")))?;
+        let dir = tempfile::Builder::new()
+            .prefix(&format!(".{name}."))
+            .suffix(".staging")
+            .tempdir_in(&parent)
+            .map_err(|e| Error::io(&dest, e))?;
+        register(dir.path());
+        Ok(Staging {
+            dir: Some(dir),
+            dest,
+        })
+    }
+
+    /// Where the outputs go until the swap.
+    pub fn path(&self) -> &Path {
+        self.dir.as_ref().expect("not committed").path()
+    }
+
+    pub fn dest(&self) -> &Path {
+        &self.dest
+    }
+
+    /// Swaps the staging folder in for the destination and removes the
+    /// previous run's folder.
+    pub fn commit(mut self) -> Result<(), Error> {
+        let dir = self.dir.take().expect("committed once");
+        let staged = dir.path().to_path_buf();
+        let done = swap_in(&staged, &self.dest);
+        if done.is_ok() {
+            // After the swap the temporary name holds the previous run
+            // (or nothing): dropping `dir` removes it.
+            if !staged.exists() {
+                let _ = dir.keep();
+            }
+        }
+        unregister(&staged);
+        done
+    }
+}
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        if let Some(dir) = &self.dir {
+            unregister(dir.path());
+        }
+    }
+}
+
+/// Puts `staged` at `dest`; a folder already at `dest` ends up at
+/// `staged`. On Linux one atomic exchange (`renameat2`), so `dest` never
+/// stops existing; elsewhere two renames.
+fn swap_in(staged: &Path, dest: &Path) -> Result<(), Error> {
+    if !dest.exists() {
+        return std::fs::rename(staged, dest).map_err(|e| Error::io(dest, e));
+    }
+    #[cfg(target_os = "linux")]
+    {
+        use std::ffi::CString;
+        use std::os::unix::ffi::OsStrExt;
+        let c = |p: &Path| CString::new(p.as_os_str().as_bytes()).ok();
+        if let (Some(a), Some(b)) = (c(staged), c(dest)) {
+            // SAFETY: two valid NUL-terminated paths, no other pointers.
+            let r = unsafe {
+                libc::renameat2(
+                    libc::AT_FDCWD,
+                    a.as_ptr(),
+                    libc::AT_FDCWD,
+                    b.as_ptr(),
+                    libc::RENAME_EXCHANGE,
+                )
+            };
+            if r == 0 {
+                return Ok(());
+            }
+        }
+    }
+    // Not Linux, or a file system without the exchange: move the old
+    // folder aside first.
+    let aside = staged.with_extension("previous");
+    std::fs::rename(dest, &aside).map_err(|e| Error::io(dest, e))?;
+    std::fs::rename(staged, dest).map_err(|e| Error::io(dest, e))?;
+    std::fs::rename(&aside, staged).map_err(|e| Error::io(dest, e))
 }
 
 /// Writes `bytes` to `dest` atomically, synced to disk.

@@ -71,17 +71,6 @@ impl<'de> serde::Deserialize<'de> for White {
     }
 }
 
-impl White {
-    /// The white luminance for `records`: the fixed value, or the auto
-    /// statistic (1.0 when no valid sample has positive luminance).
-    pub fn resolve(self, records: &[Record], h: &Header) -> f64 {
-        match self {
-            White::Fixed(v) => v,
-            White::Auto => auto_white(records, h).unwrap_or(1.0),
-        }
-    }
-}
-
 /// The median luminance of the valid samples with Y > 0, over MID_GREY.
 pub fn auto_white(records: &[Record], h: &Header) -> Option<f64> {
     let lum = || {

@@ -10,9 +10,10 @@ pub mod methods;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use crate::config::{ConfigError, FilterConfig};
+use crate::config::{ConfigError, FilterConfig, White};
 use crate::density::{self, Decision, FilterCounts, FilterResult, ReplayOptions};
-use crate::dump::{Header, Record};
+use crate::dump::{Header, Record, Validity};
+use crate::joint::white::auto_white;
 use crate::metrics::{self, ImageMetrics};
 use crate::progress::Progress;
 use crate::recon::{self, Image};
@@ -26,6 +27,8 @@ pub enum PipelineError {
     Config(#[from] ConfigError),
     #[error("cannot start the worker threads: {0}")]
     Threads(#[from] crate::par::ThreadPoolBuildError),
+    #[error("no valid sample: every record is non-finite or outside the film (see `info`)")]
+    NoValidSample,
 }
 
 /// How to run, beyond the configuration: nothing here changes an image.
@@ -71,6 +74,9 @@ pub struct Run {
     pub final_pass_seconds: f64,
     /// Reconstruction of every image, the σ map and the metrics.
     pub reconstruct_seconds: f64,
+    /// What the user should hear (most samples rejected, most pixels
+    /// falling back).
+    pub warnings: Vec<String>,
 }
 
 impl Run {
@@ -93,9 +99,95 @@ pub fn thread_pool(threads: usize) -> Result<crate::par::ThreadPool, PipelineErr
     }
 }
 
-/// The white luminance `config` asks for on these records.
-pub fn resolve_white(config: &FilterConfig, records: &[Record], header: &Header) -> f64 {
-    config.white.resolve(records, header)
+/// The white luminance `config` asks for on these records. `auto` needs
+/// a valid sample of positive luminance.
+pub fn resolve_white(
+    config: &FilterConfig,
+    records: &[Record],
+    header: &Header,
+) -> Result<f64, ConfigError> {
+    match config.white {
+        White::Fixed(v) => Ok(v),
+        White::Auto => auto_white(records, header).ok_or_else(|| ConfigError {
+            field: "white",
+            problem: "auto needs a valid sample of positive luminance, and the dump has none"
+                .into(),
+        }),
+    }
+}
+
+/// Checks `config` against the dump before any work: k below the number
+/// of valid samples (else every sample is rejected), joint coordinates
+/// that stay finite in f32 on this film. Returns the number of valid
+/// samples.
+pub fn check(
+    config: &FilterConfig,
+    records: &[Record],
+    header: &Header,
+) -> Result<u64, PipelineError> {
+    config.validate()?;
+    let valid = records
+        .iter()
+        .filter(|r| r.validity(header) == Validity::Valid)
+        .count() as u64;
+    if valid == 0 {
+        return Err(PipelineError::NoValidSample);
+    }
+    if config.k as u64 >= valid {
+        return Err(ConfigError {
+            field: "k",
+            problem: format!(
+                "{} needs more than {valid} valid samples: every sample would be rejected",
+                config.k
+            ),
+        }
+        .into());
+    }
+    // Coordinates beyond this would round to ±∞ in f32 (docs/filter.md, F4).
+    const MAX_COORD: f64 = 1e30;
+    let film = header.width.max(header.height) as f64;
+    if film / config.sigma_image > MAX_COORD {
+        return Err(ConfigError {
+            field: "sigma_image",
+            problem: format!(
+                "{:?} is too small for a {film}-pixel film: image coordinates would overflow",
+                config.sigma_image
+            ),
+        }
+        .into());
+    }
+    if header.animated() && header.frames as f64 / config.sigma_time > MAX_COORD {
+        return Err(ConfigError {
+            field: "sigma_time",
+            problem: format!(
+                "{:?} is too small for {} frames: time coordinates would overflow",
+                config.sigma_time, header.frames
+            ),
+        }
+        .into());
+    }
+    Ok(valid)
+}
+
+/// What a user should hear about a run that succeeded: most samples
+/// rejected, most pixels falling back to their median.
+fn warnings(counts: &FilterCounts, fallback: u64, occupied: u64) -> Vec<String> {
+    let mut w = Vec::new();
+    let rejected = counts.rejected as f64 / counts.valid.max(1) as f64;
+    if rejected > 0.5 {
+        w.push(format!(
+            "{:.0}% of the valid samples were rejected: the filter removed most of the image \
+             (try a smaller k or a larger sigma_color)",
+            100.0 * rejected
+        ));
+    }
+    if occupied > 0 && fallback * 2 > occupied {
+        w.push(format!(
+            "{fallback} of {occupied} pixels kept no sample and fell back to their median \
+             (try a smaller k)"
+        ));
+    }
+    w
 }
 
 /// The path-density filter's replay (docs/filter.md) at white `white`, on
@@ -145,9 +237,9 @@ pub fn run(
     config: &FilterConfig,
     options: &RunOptions,
 ) -> Result<Run, PipelineError> {
-    config.validate()?;
+    check(config, records, header)?;
     let pool = thread_pool(options.threads)?;
-    let white = resolve_white(config, records, header);
+    let white = resolve_white(config, records, header)?;
     let result = pool.install(|| {
         replay(
             records,
@@ -195,6 +287,8 @@ pub fn run(
     };
     let rec = &core.reconstruction;
     let (fallback_pixels, empty_pixels) = (rec.fallback_pixels, rec.empty_pixels);
+    let occupied = rec.occupancy.len() as u64 - empty_pixels;
+    let warnings = warnings(&result.counts, fallback_pixels, occupied);
     drop(estimators);
     Ok(Run {
         config: *config,
@@ -211,5 +305,6 @@ pub fn run(
         streaming_seconds: result.streaming_seconds,
         final_pass_seconds: result.final_seconds,
         reconstruct_seconds: t.elapsed().as_secs_f64(),
+        warnings,
     })
 }

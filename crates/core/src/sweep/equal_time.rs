@@ -87,8 +87,8 @@ pub fn equal_time(
         rwmc_kappa: *o.rwmc_kappas.first().unwrap_or(&base.rwmc_kappa),
         ..*base
     };
-    config.validate()?;
-    let white = pipeline::resolve_white(&config, dump.records(), &h);
+    pipeline::check(&config, dump.records(), &h)?;
+    let white = pipeline::resolve_white(&config, dump.records(), &h)?;
     // The mean and the peer estimators of the first m passes.
     let plain = |m: u32| {
         let (ph, recs) = prefix(m);

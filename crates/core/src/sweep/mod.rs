@@ -182,9 +182,10 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
     // once per value of their swept parameter, labelled with it.
     let compare = |img: &Image| metrics::compare(img, &reference, o.config.exposure).pooled;
     let shared = Shared::new(records, &h);
+    let base_white = pipeline::resolve_white(&o.config, records, &h)?;
     let (baselines, valid) = pool.install(|| {
         let base = &o.config;
-        let white = pipeline::resolve_white(base, records, &h);
+        let white = base_white;
         let core = pipeline::reconstruct(records, &h, base, |_| true, 0.0);
         let valid: u64 = core
             .reconstruction
@@ -222,19 +223,26 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
 
     let configs = grid(o);
     progress.set_length(configs.len() as u64);
-    let mut whites: Vec<(White, f64)> = Vec::new();
+    let mut whites: Vec<(White, Result<f64, String>)> = Vec::new();
     let mut rows = Vec::new();
     for config in configs {
         let white_value = match whites.iter().find(|e| e.0 == config.white) {
-            Some(e) => e.1,
+            Some(e) => e.1.clone(),
             None => {
-                let v = pipeline::resolve_white(&config, records, &h);
-                whites.push((config.white, v));
+                let v = pipeline::resolve_white(&config, records, &h).map_err(|e| e.to_string());
+                whites.push((config.white, v.clone()));
                 v
             }
         };
-        let row =
-            pool.install(|| configuration(records, &h, &config, white_value, &reference, valid));
+        let row = match white_value {
+            Ok(white) => {
+                pool.install(|| configuration(records, &h, &config, white, &reference, valid))
+            }
+            Err(failure) => Row {
+                failure: Some(failure),
+                ..Row::unrun(&config, f64::NAN)
+            },
+        };
         rows.push(row);
         progress.inc(1);
     }
@@ -259,19 +267,9 @@ fn configuration(
     reference: &Image,
     valid: u64,
 ) -> Row {
-    let mut row = Row {
-        k: config.k,
-        sigma_color: config.sigma_color,
-        sigma_image: config.sigma_image,
-        white: config.white.to_string(),
-        white_value,
-        failure: None,
-        seconds: 0.0,
-        stored: 0,
-        accepted_fraction: 0.0,
-        fallback_pixels: 0,
-        metrics: None,
-    };
+    let mut row = Row::unrun(config, white_value);
+    // A k the dump cannot serve is the first thing a sweep's reader needs
+    // to know about a row, before any other refusal.
     if config.k > 0 && config.k as u64 >= valid {
         row.failure = Some(format!(
             "k = {} needs more than {valid} valid samples: every sample would be rejected",
@@ -279,7 +277,7 @@ fn configuration(
         ));
         return row;
     }
-    if let Err(e) = config.validate() {
+    if let Err(e) = pipeline::check(config, records, h) {
         row.failure = Some(e.to_string());
         return row;
     }
@@ -308,6 +306,25 @@ fn configuration(
     row.metrics =
         Some(metrics::compare(&core.reconstruction.filtered, reference, config.exposure).pooled);
     row
+}
+
+impl Row {
+    /// The row of a configuration before it runs.
+    fn unrun(config: &FilterConfig, white_value: f64) -> Row {
+        Row {
+            k: config.k,
+            sigma_color: config.sigma_color,
+            sigma_image: config.sigma_image,
+            white: config.white.to_string(),
+            white_value,
+            failure: None,
+            seconds: 0.0,
+            stored: 0,
+            accepted_fraction: 0.0,
+            fallback_pixels: 0,
+            metrics: None,
+        }
+    }
 }
 
 impl Sweep {

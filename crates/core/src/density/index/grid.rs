@@ -44,18 +44,29 @@ impl<const D: usize> Grid<D> {
     /// axis a (x, y, then t when D = 6).
     pub fn new(extent: [f64; 3]) -> Grid<D> {
         let axes = if D == 6 { 3 } else { 2 };
+        // Coordinates are f32, clamped to the finite range (docs/filter.md,
+        // F4): no extent goes beyond it, so doubling the side ends.
+        let extent = extent.map(|e| {
+            if e.is_finite() {
+                e.clamp(0.0, f32::MAX as f64)
+            } else {
+                f32::MAX as f64
+            }
+        });
         // One joint unit (σ_image pixels): σ < 1 mostly needs ring 0 and 1.
         // Measured on the benchmark dump: sides 0.5 and 2 are slower.
         let mut side = [1.0f64; 3];
         let dims_for = |side: &[f64; 3]| {
             let mut d = [1usize; 3];
             for a in 0..axes {
-                d[a] = ((extent[a] / side[a]).ceil() as usize).max(1);
+                // Far above MAX_CELLS, and far below usize::MAX.
+                d[a] = (extent[a] / side[a]).ceil().clamp(1.0, 1e15) as usize;
             }
             d
         };
+        let cells = |d: &[usize; 3]| d.iter().fold(1usize, |n, &x| n.saturating_mul(x));
         let mut dims = dims_for(&side);
-        while dims.iter().product::<usize>() > MAX_CELLS {
+        while cells(&dims) > MAX_CELLS {
             let a = (0..axes).max_by_key(|&a| dims[a]).unwrap();
             side[a] *= 2.0;
             dims = dims_for(&side);
