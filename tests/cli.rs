@@ -328,3 +328,46 @@ fn info_reports_counts_and_exact_percentiles() {
     let text = run_ok(&["info", p.to_str().unwrap()]);
     assert!(text.contains("1000 valid"));
 }
+
+/// A re-run into a folder that holds an earlier run (other methods, the
+/// HTML report) leaves exactly the new run's files: never a mix.
+#[test]
+fn a_rerun_replaces_the_whole_output_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = SynthParams {
+        width: 12,
+        height: 8,
+        spp: 6,
+        ..SynthParams::default()
+    };
+    let dump = synth(dir.path(), "a.pds", &p);
+    let out = dir.path().join("out");
+    let o = out.to_str().unwrap();
+    run_ok(&["filter", &dump, "-o", o, "--k", "10"]);
+    assert!(files(&out).contains(&"report.html".to_string()));
+    run_ok(&[
+        "filter",
+        &dump,
+        "-o",
+        o,
+        "--k",
+        "5",
+        "--methods",
+        "trimmed",
+        "--no-html",
+    ]);
+    let want = [
+        "filtered.exr",
+        "mean.exr",
+        "rejected.exr",
+        "report.json",
+        "trimmed.exr",
+    ];
+    assert_eq!(files(&out), want);
+    assert_eq!(report(&out)["config"]["k"], 5);
+    // Nothing hidden is left beside it either.
+    assert_eq!(files(dir.path()), ["a.pds", "out"]);
+    // An output path that is a file is refused, by name.
+    let e = run_err(&["filter", &dump, "-o", &dump]);
+    assert!(e.contains("a.pds") && e.contains("not a directory"), "{e}");
+}

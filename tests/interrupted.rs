@@ -104,6 +104,60 @@ fn a_killed_filter_leaves_complete_files_and_the_previous_outputs() {
     }
 }
 
+/// SIGINT and SIGTERM (Ctrl-C, a scheduler's pre-emption) leave no
+/// temporary file or staging folder behind, for `filter` and `synth`, and
+/// exit with 130.
+#[test]
+fn an_interrupted_run_leaves_no_temporaries() {
+    let dir = tempfile::tempdir().unwrap();
+    let bin = env!("CARGO_BIN_EXE_pathdensity");
+    let big = dir.path().join("big.pds");
+    SynthParams::default().write(&big).unwrap();
+    let runs: [(&str, Vec<String>); 2] = [
+        (
+            "-INT",
+            vec![
+                "filter".into(),
+                big.to_str().unwrap().into(),
+                "-o".into(),
+                "out".into(),
+            ],
+        ),
+        (
+            "-TERM",
+            vec![
+                "synth".into(),
+                "-o".into(),
+                "s.pds".into(),
+                "--width".into(),
+                "1024".into(),
+            ],
+        ),
+    ];
+    for (signal, args) in runs {
+        let mut child = Command::new(bin)
+            .args(&args)
+            .current_dir(dir.path())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(600));
+        Command::new("kill")
+            .args([signal, &child.id().to_string()])
+            .status()
+            .unwrap();
+        let status = child.wait().unwrap();
+        assert_eq!(status.code(), Some(130), "{args:?} after {signal}");
+        let mut left: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["big.pds"], "{args:?} after {signal}");
+    }
+}
+
 #[test]
 fn a_killed_render_leaves_no_dump_under_its_final_name() {
     let dir = tempfile::tempdir().unwrap();
