@@ -29,12 +29,16 @@ struct Cli {
 /// [`FilterConfig::DEFAULT`]'s.
 #[derive(Args)]
 struct ConfigArgs {
+    /// Neighbours whose mean distance σ decides a sample (σ < 1 accepts).
     #[arg(long, default_value_t = D.k)]
     k: usize,
+    /// Joint-space scale of the image axes, in pixels.
     #[arg(long, default_value_t = D.sigma_image)]
     sigma_image: f64,
+    /// Joint-space scale of the colour axes, in CIELAB units.
     #[arg(long, default_value_t = D.sigma_color)]
     sigma_color: f64,
+    /// Joint-space scale of the time axis, in frames (animations).
     #[arg(long, default_value_t = D.sigma_time)]
     sigma_time: f64,
     /// Luminance of white (radiance that maps to L* = 100), or `auto`:
@@ -123,6 +127,7 @@ enum OrderArg {
 enum Command {
     /// Print a dump's header, invalid records and radiance statistics.
     Info {
+        /// The sample dump (.pds).
         dump: PathBuf,
         /// Print JSON instead of a table.
         #[arg(long)]
@@ -131,7 +136,9 @@ enum Command {
     /// Run the path-density filter and write images and a report.
     #[command(allow_negative_numbers = true)]
     Filter {
+        /// The sample dump (.pds) to filter.
         dump: PathBuf,
+        /// Output folder; replaced whole by this run's files when it ends.
         #[arg(short, long)]
         out: PathBuf,
         #[command(flatten)]
@@ -159,18 +166,24 @@ enum Command {
     /// Run the filter over a grid of k, σ_color, σ_image and white.
     #[command(allow_negative_numbers = true)]
     Sweep {
+        /// The sample dump (.pds).
         dump: PathBuf,
+        /// The reference EXR every configuration is measured against.
         #[arg(long)]
         reference: PathBuf,
+        /// Output folder for sweep.csv, sweep.json and the plots.
         #[arg(short, long)]
         out: PathBuf,
-        #[arg(long, value_delimiter = ',', default_values_t = [5, 10, 20, 50, 200])]
+        /// k values, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "5,10,20,50,200")]
         k: Vec<usize>,
-        #[arg(long, value_delimiter = ',', default_values_t = [25.0, 50.0, 100.0, 200.0, 400.0])]
+        /// σ_color values, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "25,50,100,200,400")]
         sigma_color: Vec<f64>,
-        #[arg(long, value_delimiter = ',', default_values_t = [1.5, 3.0, 6.0])]
+        /// σ_image values, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "1.5,3,6")]
         sigma_image: Vec<f64>,
-        /// White luminances, numbers or `auto`.
+        /// White luminances, numbers or `auto`, comma-separated.
         #[arg(long, value_delimiter = ',', default_value = "1")]
         white: Vec<White>,
         #[arg(long, default_value_t = D.sigma_time)]

@@ -44,6 +44,13 @@ fn a_drift_is_reported_and_bless_rewrites_the_expectations() {
     assert_ne!(text, changed);
     std::fs::write(&manifest, changed).unwrap();
 
+    // A second fixture whose dump is cut short: reported, and the first
+    // is still checked.
+    let broken = root.path().join("broken");
+    copy_dir(&fixtures().join("sky"), &broken);
+    let bytes = std::fs::read(broken.join("dump.pds")).unwrap();
+    std::fs::write(broken.join("dump.pds"), &bytes[..bytes.len() - 7]).unwrap();
+
     let out = Command::new(env!("CARGO_BIN_EXE_pathdensity"))
         .args(["regress", root.path().to_str().unwrap()])
         .output()
@@ -52,10 +59,16 @@ fn a_drift_is_reported_and_bless_rewrites_the_expectations() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stdout.contains("glossy-room: DRIFT"), "{stdout}");
-    assert!(stdout.contains("counts: expected"), "{stdout}");
+    assert!(stdout.contains("counts: stored "), "{stdout}");
+    assert!(stdout.contains("broken: DRIFT"), "{stdout}");
+    assert!(
+        stdout.contains("cannot run") && stdout.contains("bytes"),
+        "{stdout}"
+    );
     assert!(stdout.contains("filtered: RMS"), "{stdout}");
     assert!(stdout.contains("filtered.exr:"), "{stdout}");
-    assert!(stderr.contains("1 of 1 fixtures drifted"), "{stderr}");
+    assert!(stderr.contains("2 of 2 fixtures drifted"), "{stderr}");
+    std::fs::remove_dir_all(&broken).unwrap();
 
     let bless = Command::new(env!("CARGO_BIN_EXE_pathdensity"))
         .args(["regress", root.path().to_str().unwrap(), "--bless"])

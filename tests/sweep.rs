@@ -224,3 +224,24 @@ fn equal_time_rows_are_prefix_renders_at_matching_time() {
         "{e}"
     );
 }
+
+/// A sweep whose every configuration fails still writes its table (with
+/// each reason) but reports failure.
+#[test]
+fn a_sweep_where_every_configuration_fails_is_an_error() {
+    let fixture = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/glossy-room");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("sw");
+    let mut o = SweepOptions::new(
+        fixture.join("dump.pds"),
+        fixture.join("reference.exr"),
+        &out,
+    );
+    o.ks = vec![100_000];
+    o.sigma_colors = vec![100.0];
+    o.sigma_images = vec![3.0];
+    let e = sweep(&o).unwrap_err().to_string();
+    assert!(e.contains("every configuration failed"), "{e}");
+    let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
+    assert!(csv.contains("valid samples"), "{csv}");
+}

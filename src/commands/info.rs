@@ -85,7 +85,7 @@ pub fn info(path: &Path) -> Result<Info> {
 pub fn render(i: &Info) -> String {
     let h = &i.header;
     let mut s = format!(
-        "{}\n  film        {} × {} px, {} frame(s), {} spp, order {:?}\n  scene       {:?} (seed {}, producer {:?})\n  records     {} ({} valid; invalid: {} non-finite, {} outside film, {} outside time)\n",
+        "{}\n  film        {} × {} px, {} frame(s), {} spp, order {}\n  scene       {:?} (seed {}, producer {:?})\n  records     {} ({} valid; invalid: {} non-finite, {} outside film, {} outside time)\n",
         i.path,
         h.width,
         h.height,

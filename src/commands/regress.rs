@@ -15,7 +15,8 @@ pub struct Outcome {
     pub fixtures: usize,
 }
 
-/// Checks (or blesses) every fixture under `root`.
+/// Checks (or blesses) every fixture under `root`. A fixture that cannot
+/// run counts as drifted, and the others are still checked.
 pub fn regress(root: &Path, bless: bool) -> Result<Outcome> {
     let mut out = String::new();
     let mut failed = 0;
@@ -27,7 +28,11 @@ pub fn regress(root: &Path, bless: bool) -> Result<Outcome> {
             out += &format!("{name}: blessed ({} images)\n", m.expected.images.len());
             continue;
         }
-        let drift = regress::check(dir)?;
+        // A broken fixture is reported and the others still run.
+        let drift = match regress::check(dir) {
+            Ok(d) => d,
+            Err(e) => vec![format!("cannot run: {e:#}")],
+        };
         if drift.is_empty() {
             out += &format!("{name}: ok\n");
         } else {

@@ -1,9 +1,9 @@
 //! `pathdensity sweep`: the filter over a grid of parameters, written as
 //! `sweep.csv`, `sweep.json` and two plots, each as SVG and PNG.
 
-use anyhow::{Context, Result, anyhow};
+use anyhow::{Result, anyhow, bail};
 
-use crate::io::atomic;
+use crate::io::atomic::{self, Staging};
 use crate::metrics::Metrics;
 use crate::progress::{Progress, Silent};
 use crate::report;
@@ -16,8 +16,9 @@ pub fn sweep(o: &SweepOptions) -> Result<Sweep> {
 
 /// Runs the sweep of `o` and writes its files.
 pub fn sweep_with_progress(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
+    let staging = Staging::create(&o.out_dir)?;
     let s = sweep::run(o, progress)?;
-    let dir = &o.out_dir;
+    let dir = staging.path();
     atomic::write_bytes(&dir.join("sweep.csv"), report::sweep::csv(&s).as_bytes())?;
     let json = serde_json::to_vec_pretty(&s).expect("a sweep serialises");
     atomic::write_bytes(&dir.join("sweep.json"), &json)?;
@@ -36,6 +37,13 @@ pub fn sweep_with_progress(o: &SweepOptions, progress: &dyn Progress) -> Result<
         &dir.join("rms_vs_k.png"),
         &plot(report::sweep::plot_k_png(&s))?,
     )?;
+    staging.commit()?;
+    if s.rows.iter().all(|r| r.failure.is_some()) {
+        bail!(
+            "every configuration failed (the reasons are in {})",
+            o.out_dir.join("sweep.csv").display()
+        );
+    }
     Ok(s)
 }
 
@@ -91,16 +99,16 @@ pub fn equal_time(
     render_seconds: f64,
     progress: &dyn Progress,
 ) -> Result<String> {
-    std::fs::create_dir_all(&o.out_dir)
-        .with_context(|| format!("{}: cannot create output directory", o.out_dir.display()))?;
+    let staging = Staging::create(&o.out_dir)?;
     let rows = sweep::equal_time(o, render_seconds, progress)?;
-    let dir = &o.out_dir;
+    let dir = staging.path();
     atomic::write_bytes(
         &dir.join("equal_time.csv"),
         sweep::equal_time_csv(&rows).as_bytes(),
     )?;
     let json = serde_json::to_vec_pretty(&rows).expect("rows serialise");
     atomic::write_bytes(&dir.join("equal_time.json"), &json)?;
+    staging.commit()?;
     let mut t = format!(
         "{:>5} {:>9} {:>17} {:>17} | {:>5} {:>9} {:>17} {:>29} | winner (RMS, display)\n",
         "spp", "total s", "filtered", "filtered_energy", "spp", "render s", "mean", "best peer"

@@ -193,6 +193,27 @@ fn run(dir: &Path, m: &Manifest) -> Result<Outcome> {
     Ok(Outcome { expected, files })
 }
 
+/// One line per count that changed, in words: `counts: stored 508 → 512`.
+fn count_drifts(want: &ExpectedCounts, got: &ExpectedCounts) -> Vec<String> {
+    let pairs = |c: &ExpectedCounts| {
+        [
+            ("valid", c.valid),
+            ("invalid", c.invalid),
+            ("accepted while streaming", c.accepted_streaming),
+            ("accepted in the final pass", c.accepted_final),
+            ("rejected", c.rejected),
+            ("stored", c.stored),
+            ("fallback pixels", c.fallback_pixels),
+        ]
+    };
+    pairs(want)
+        .into_iter()
+        .zip(pairs(got))
+        .filter(|(w, g)| w.1 != g.1)
+        .map(|((name, w), (_, g))| format!("counts: {name} {w} → {g}"))
+        .collect()
+}
+
 /// Re-runs the fixture in `dir` and lists every drift from its
 /// expectations (empty: the fixture passes).
 pub fn check(dir: &Path) -> Result<Vec<String>> {
@@ -202,12 +223,7 @@ pub fn check(dir: &Path) -> Result<Vec<String>> {
     let want = &m.expected;
     let tol = &m.tolerance;
     let mut drift = Vec::new();
-    if got.counts != want.counts {
-        drift.push(format!(
-            "counts: expected {:?}, got {:?}",
-            want.counts, got.counts
-        ));
-    }
+    drift.extend(count_drifts(&want.counts, &got.counts));
     for (name, w) in &want.metrics {
         let Some(g) = got.metrics.get(name) else {
             drift.push(format!("{name}: no longer produced"));

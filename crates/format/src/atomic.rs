@@ -11,6 +11,15 @@ use tempfile::{NamedTempFile, TempDir};
 
 use crate::Error;
 
+/// `e` without the temporary path `tempfile` adds to its message (the
+/// caller names the destination instead).
+fn bare(e: &std::io::Error) -> std::io::Error {
+    match e.raw_os_error() {
+        Some(code) => std::io::Error::from_raw_os_error(code),
+        None => e.kind().into(),
+    }
+}
+
 /// Every temporary file and staging folder this process has open, so that
 /// a signal handler can remove them ([`remove_temporaries`]).
 static TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
@@ -69,7 +78,7 @@ impl AtomicFile {
             .prefix(&format!(".{name}."))
             .suffix(".tmp")
             .tempfile_in(dir)
-            .map_err(|e| Error::io(&dest, e))?;
+            .map_err(|e| Error::format(&dest, format!("cannot create: {}", bare(&e))))?;
         register(tmp.path());
         Ok(AtomicFile {
             tmp: Some(tmp),
@@ -148,7 +157,7 @@ impl Staging {
             .prefix(&format!(".{name}."))
             .suffix(".staging")
             .tempdir_in(&parent)
-            .map_err(|e| Error::io(&dest, e))?;
+            .map_err(|e| Error::format(&dest, format!("cannot write beside it: {}", bare(&e))))?;
         register(dir.path());
         Ok(Staging {
             dir: Some(dir),

@@ -8,7 +8,7 @@ pub mod equal_time;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 
 use crate::config::{FilterConfig, Method, White};
 use crate::dump::{DumpReader, Header, Record};
@@ -174,8 +174,6 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
         h.height as usize,
         h.frames as usize,
     )?;
-    std::fs::create_dir_all(&o.out_dir)
-        .with_context(|| format!("{}: cannot create output directory", o.out_dir.display()))?;
     let pool = thread_pool(o.threads)?;
 
     // The baselines, once, at the base configuration; the peer methods

@@ -23,6 +23,17 @@ pub enum Order {
     PassMajor = 2,
 }
 
+impl std::fmt::Display for Order {
+    /// As in JSON: `unspecified`, `pixel-major`, `pass-major`.
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str(match self {
+            Order::Unspecified => "unspecified",
+            Order::PixelMajor => "pixel-major",
+            Order::PassMajor => "pass-major",
+        })
+    }
+}
+
 impl Order {
     pub fn from_u8(v: u8) -> Option<Order> {
         match v {
