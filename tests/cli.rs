@@ -345,6 +345,12 @@ fn a_rerun_replaces_the_whole_output_folder() {
     let o = out.to_str().unwrap();
     run_ok(&["filter", &dump, "-o", o, "--k", "10"]);
     assert!(files(&out).contains(&"report.html".to_string()));
+    let first = report(&out)["provenance"].clone();
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(
+        html.contains("accepted while streaming"),
+        "the counts are on the page"
+    );
     run_ok(&[
         "filter",
         &dump,
@@ -365,6 +371,14 @@ fn a_rerun_replaces_the_whole_output_folder() {
     ];
     assert_eq!(files(&out), want);
     assert_eq!(report(&out)["config"]["k"], 5);
+    // The report says what it was made from: the same dump, the same hash.
+    let second = report(&out)["provenance"].clone();
+    assert_eq!(first["dump_xxh3"].as_str().unwrap().len(), 16);
+    assert_eq!(first["dump_xxh3"], second["dump_xxh3"]);
+    assert!(
+        second["command"].to_string().contains("trimmed"),
+        "{second}"
+    );
     // Nothing hidden is left beside it either.
     assert_eq!(files(dir.path()), ["a.pds", "out"]);
     // An output path that is a file is refused, by name.

@@ -18,7 +18,7 @@ fn python_with_numpy() -> bool {
 #[test]
 fn the_python_module_round_trips_dumps_with_the_library() {
     if !python_with_numpy() {
-        eprintln!("SKIPPED: python3 with numpy is not installed (.ci/run installs it)");
+        common::skipped("python3 with numpy is not installed (.ci/run installs it)");
         return;
     }
     let dir = tempfile::tempdir().unwrap();

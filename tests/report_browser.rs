@@ -144,7 +144,9 @@ fn report_html_loads_without_errors_in_a_headless_browser() {
         if std::env::var_os("PATHDENSITY_REQUIRE_BROWSER").is_some() {
             panic!("no browser found, and PATHDENSITY_REQUIRE_BROWSER is set");
         }
-        eprintln!("SKIPPED: no chromium on PATH (set PATHDENSITY_BROWSER)");
+        common::skipped(
+            "report.html in a browser: no chromium on PATH (set PATHDENSITY_BROWSER; .ci/run installs it)",
+        );
         return;
     };
     check_report(&b, 1);

@@ -74,6 +74,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     opts.reference = Some(cli.out.join(&written[0]));
     let report = filter::filter_with_progress(&opts, &Bar::new("filter"))?;
     print!("{}", report.summary());
+    println!(
+        "report: {}",
+        cli.out.join("filtered").join("report.html").display()
+    );
     Ok(())
 }
 

@@ -15,7 +15,7 @@ use crate::progress::{Progress, Silent};
 use crate::recon::Image;
 use crate::report::html::{self, Assets};
 use crate::report::plots;
-use crate::report::{EnergyRemoved, FilterReport, Timing};
+use crate::report::{EnergyRemoved, FilterReport, Provenance, Timing};
 
 #[derive(Clone, Debug)]
 pub struct FilterOptions {
@@ -72,6 +72,9 @@ pub fn filter(opts: &FilterOptions) -> Result<FilterReport> {
 /// Runs the pipeline on the dump of `opts` and writes its outputs.
 pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Result<FilterReport> {
     let t_start = Instant::now();
+    let started = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
     opts.config.validate()?;
     let dump = DumpReader::open(&opts.dump)?;
     let h = dump.header().clone();
@@ -152,6 +155,15 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
         slice_row,
         outputs: Vec::new(),
         warnings: run.warnings.clone(),
+        provenance: Provenance {
+            program: format!("pathdensity {}", env!("CARGO_PKG_VERSION")),
+            command: std::env::args().collect(),
+            dump_xxh3: format!("{:016x}", dump.content_hash()),
+            reference_xxh3: reference
+                .as_ref()
+                .map(|r| format!("{:016x}", r.content_hash())),
+            started_unix_seconds: started,
+        },
     };
     if opts.html {
         let exposure = opts.config.exposure;

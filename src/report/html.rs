@@ -42,6 +42,7 @@ fn frames_array(frames: &[Vec<u8>]) -> String {
 }
 
 const STYLE: &str = r#"
+p.note { color: #a40; }
 body { font: 14px/1.4 system-ui, sans-serif; margin: 1.5em; color: #222; }
 h1 { font-size: 1.3em; } h2 { font-size: 1.1em; margin-top: 1.5em; }
 table { border-collapse: collapse; } td, th { padding: 2px 10px; text-align: right; }
@@ -133,7 +134,13 @@ pub fn render(report: &FilterReport, assets: &Assets) -> String {
         );
         add(
             "sigma",
-            "σ map: mean σ of each pixel's samples",
+            "σ map: mean σ of each pixel's samples, each the σ that decided it. \
+             Samples whose neighbourhood in T was still sparse when the replay \
+             met them (where it starts, e.g. the first rows of a pixel-major \
+             dump, and along the film's edges, which have neighbours on one \
+             side only) are stored and decided in the final pass against all \
+             of T, which tends to give a lower σ: a band there comes from the \
+             replay, not from the image.",
             frames,
             &bar,
         );
@@ -159,6 +166,8 @@ pub fn render(report: &FilterReport, assets: &Assets) -> String {
 <body>
 <h1>pathdensity report: {title}</h1>
 <p>{w} × {hh} × {frames} frame(s), {count} samples ({scene}); k = {k}, σ_image = {si}, σ_color = {sc}, white = {white}; previews at exposure {exposure}, sRGB. Move the pointer over any image to magnify all of them at the same place.</p>
+<p>{counts}</p>
+{notes}
 {table}
 {slider}
 <div class="grid">
@@ -180,6 +189,12 @@ pub fn render(report: &FilterReport, assets: &Assets) -> String {
         white = report.white,
         exposure = report.config.exposure,
         table = metric_table(report),
+        counts = escape(&report.counts_line()),
+        notes = report
+            .notes()
+            .iter()
+            .map(|n| format!("<p class=\"note\">{}</p>\n", escape(n)))
+            .collect::<String>(),
         frames_js = frames_js.join(",\n"),
     )
 }

@@ -77,6 +77,24 @@ pub struct FilterReport {
     /// What the user should hear (most samples rejected, most pixels
     /// falling back).
     pub warnings: Vec<String>,
+    pub provenance: Provenance,
+}
+
+/// What a report was made from and by, so a run can be reproduced and a
+/// batch can tell a finished output from a stale one.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Provenance {
+    /// `pathdensity` and its version.
+    pub program: String,
+    /// The command line, one argument each.
+    pub command: Vec<String>,
+    /// XXH3-64 of the dump's header and records, in hex.
+    pub dump_xxh3: String,
+    /// XXH3-64 of the reference file(s) read, in hex (frame after frame).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference_xxh3: Option<String>,
+    /// When the run started, seconds since 1970-01-01 UTC.
+    pub started_unix_seconds: u64,
 }
 
 impl FilterReport {
@@ -139,9 +157,20 @@ impl FilterReport {
         if best.is_some() {
             s += "  (* lowest RMS)\n";
         }
-        for w in &self.warnings {
-            s += &format!("  warning: {w}\n");
+        for n in self.notes() {
+            s += &format!("  {n}\n");
         }
+        s
+    }
+
+    /// What the reader should be told beside the numbers: the run's
+    /// warnings, and rwmc's κ when the dump has too few samples for it.
+    pub fn notes(&self) -> Vec<String> {
+        let mut notes: Vec<String> = self
+            .warnings
+            .iter()
+            .map(|w| format!("warning: {w}"))
+            .collect();
         // rwmc's counting reliability is at most spp / κ: below κ samples
         // per pixel no cascade is fully trusted and the image darkens.
         let spp = self.header.spp as f64;
@@ -149,14 +178,34 @@ impl FilterReport {
             && spp > 0.0
             && self.config.rwmc_kappa > spp / 2.0
         {
-            s += &format!(
-                "  note: rwmc's κ = {} needs well over κ samples per pixel; with {} spp try --rwmc-kappa {}\n",
+            notes.push(format!(
+                "note: rwmc's κ = {} needs well over κ samples per pixel; with {} spp try --rwmc-kappa {}",
                 self.config.rwmc_kappa,
                 self.header.spp,
                 (spp / 16.0).max(1.0)
-            );
+            ));
         }
-        s
+        notes
+    }
+
+    /// The counts, as one sentence.
+    pub fn counts_line(&self) -> String {
+        let c = &self.counts;
+        let pct = |n: u64| 100.0 * n as f64 / c.valid.max(1) as f64;
+        format!(
+            "{} valid samples ({} invalid): {} accepted while streaming ({:.2}%), {} in the final pass ({:.2}%), {} rejected ({:.2}%); {} stored in T; {} pixels fell back to their median, {} are empty.",
+            c.valid,
+            c.invalid.total(),
+            c.accepted_streaming,
+            pct(c.accepted_streaming),
+            c.accepted_final,
+            pct(c.accepted_final),
+            c.rejected,
+            pct(c.rejected),
+            c.stored,
+            self.fallback_pixels,
+            self.empty_pixels
+        )
     }
 }
 

@@ -126,3 +126,11 @@ pub fn synth_mean(p: &pathdensity::synth::SynthParams) -> pathdensity::recon::Im
     }
     film.resolve(&occ)
 }
+
+/// Says loudly that a test skipped part of its work: written straight to
+/// the process's stderr, which the test harness does not capture, so the
+/// line shows even when the test passes.
+pub fn skipped(why: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr(), "SKIPPED: {why}");
+}

@@ -35,6 +35,20 @@ impl Image {
         self.width * self.height
     }
 
+    /// A 64-bit digest (XXH3) of the size and the pixels' bits.
+    pub fn content_hash(&self) -> u64 {
+        let mut h = xxhash_rust::xxh3::Xxh3::new();
+        for n in [self.width, self.height, self.frames] {
+            h.update(&(n as u64).to_le_bytes());
+        }
+        for p in &self.data {
+            for c in p {
+                h.update(&c.to_bits().to_le_bytes());
+            }
+        }
+        h.digest()
+    }
+
     /// The pixels of one frame.
     pub fn frame(&self, f: usize) -> &[[f64; 3]] {
         let n = self.pixels_per_frame();

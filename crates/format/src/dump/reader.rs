@@ -77,6 +77,18 @@ impl DumpReader {
         self.header_len
     }
 
+    /// A 64-bit digest (XXH3) of the dump's content, header and records:
+    /// equal for equal files, and what a report records to say which dump
+    /// it was made from.
+    pub fn content_hash(&self) -> u64 {
+        let mut h = xxhash_rust::xxh3::Xxh3::new();
+        if let Ok(prefix) = self.header.prefix_bytes() {
+            h.update(&prefix);
+        }
+        h.update(bytemuck::cast_slice(self.records()));
+        h.digest()
+    }
+
     /// Every record, in file order, without copying.
     pub fn records(&self) -> &[Record] {
         match &self.map {
