@@ -163,7 +163,7 @@ fn a_killed_render_leaves_no_dump_under_its_final_name() {
     let dir = tempfile::tempdir().unwrap();
     let dump = dir.path().join("r.pds");
     let render = env!("CARGO_BIN_EXE_render");
-    let mut child = Command::new(&render)
+    let mut child = Command::new(render)
         .args([
             "--scene",
             "glossy-room",
