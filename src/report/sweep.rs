@@ -109,13 +109,18 @@ fn chart_time<DB: DrawingBackend>(s: &Sweep, root: DrawingArea<DB, Shift>) -> Re
         .chain(s.baselines.iter().map(|b| b.seconds))
         .map(|t| t.max(1e-4))
         .collect();
-    let all_e = pts
-        .iter()
-        .map(|p| p.1)
-        .chain(s.baselines.iter().map(|b| b.metrics.rms));
     let t_min = all_t.iter().copied().fold(f64::INFINITY, f64::min) / 1.5;
     let t_max = all_t.iter().copied().fold(1e-3, f64::max) * 1.5;
-    let e_max = all_e.fold(1e-6, f64::max) * 1.1;
+    // The configurations set the scale; a baseline far above them (rwmc
+    // at low spp, say) is drawn on the top edge with its value, rather
+    // than squashing every configuration into one line.
+    let configs_max = pts.iter().map(|p| p.1).fold(1e-6, f64::max);
+    let baselines_max = s
+        .baselines
+        .iter()
+        .map(|b| b.metrics.rms)
+        .fold(0.0, f64::max);
+    let e_max = baselines_max.min(3.0 * configs_max).max(configs_max) * 1.1;
     let e = |e: DrawingAreaErrorKind<_>| e.to_string();
     root.fill(&WHITE).map_err(e)?;
     let mut chart = ChartBuilder::on(&root)
@@ -132,6 +137,8 @@ fn chart_time<DB: DrawingBackend>(s: &Sweep, root: DrawingArea<DB, Shift>) -> Re
         .configure_mesh()
         .x_desc("seconds (log scale)")
         .y_desc("RMS")
+        .x_labels(6)
+        .x_label_formatter(&|v| format!("{v:.3}"))
         .draw()
         .map_err(e)?;
     let blue = RGBColor(40, 90, 200);
@@ -151,12 +158,18 @@ fn chart_time<DB: DrawingBackend>(s: &Sweep, root: DrawingArea<DB, Shift>) -> Re
         .label("Pareto front")
         .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], RED));
     for b in &s.baselines {
-        let p = (b.seconds.max(1e-4), b.metrics.rms);
+        let rms = b.metrics.rms;
+        let (p, label) = if rms > e_max {
+            let top = (b.seconds.max(1e-4), e_max * 0.97);
+            (top, format!("{} (RMS {rms:.3}, off scale)", b.method))
+        } else {
+            ((b.seconds.max(1e-4), rms), b.method.clone())
+        };
         chart
             .draw_series([TriangleMarker::new(p, 6, BLACK.filled())])
             .map_err(e)?;
         chart
-            .draw_series([Text::new(b.method.clone(), p, ("sans-serif", 13))])
+            .draw_series([Text::new(label, p, ("sans-serif", 13))])
             .map_err(e)?;
     }
     chart
