@@ -84,6 +84,9 @@ struct ConfigArgs {
     /// filtered_energy: σ (pixels) of the spread of the removed energy.
     #[arg(long, default_value_t = D.energy_sigma)]
     energy_sigma: f64,
+    /// clamp: the largest RGB component a sample may keep.
+    #[arg(long, default_value_t = D.clamp)]
+    clamp: f64,
     /// Exposure of the PNG previews and the display metrics.
     #[arg(long, default_value_t = D.exposure)]
     exposure: f64,
@@ -112,6 +115,7 @@ impl From<ConfigArgs> for FilterConfig {
             rwmc_kappa: a.rwmc_kappa,
             rwmc_min_luminance: a.rwmc_min_luminance,
             energy_sigma: a.energy_sigma,
+            clamp: a.clamp,
             exposure: a.exposure,
         }
     }
@@ -208,6 +212,9 @@ enum Command {
         /// κ values of the rwmc baseline.
         #[arg(long, value_delimiter = ',', default_values_t = [D.rwmc_kappa])]
         rwmc_kappa: Vec<f64>,
+        /// C values of the clamp baseline, comma-separated.
+        #[arg(long, value_delimiter = ',', default_values_t = [D.clamp])]
+        clamp: Vec<f64>,
     },
     /// Re-run every regression fixture and compare with its expectations.
     Regress {
@@ -307,6 +314,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             render_seconds,
             mon_groups,
             rwmc_kappa,
+            clamp,
         } => {
             let mut o = SweepOptions::new(dump, reference, out);
             o.ks = k;
@@ -319,6 +327,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             o.threads = threads;
             o.mon_groups = mon_groups;
             o.rwmc_kappas = rwmc_kappa;
+            o.clamps = clamp;
             match render_seconds.filter(|_| equal_time) {
                 Some(secs) => print!("{}", sweep::equal_time(&o, secs, &Bar::new("prefixes"))?),
                 None => print!(

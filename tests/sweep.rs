@@ -38,6 +38,7 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
     o.whites = vec![White::Fixed(1.0), White::Auto];
     o.mon_groups = vec![3, 11];
     o.rwmc_kappas = vec![2.0, 32.0];
+    o.clamps = vec![1.0, 10.0];
     let s = sweep(&o).unwrap();
     assert_eq!(s.rows.len(), 3 * 2 * 2 * 2);
     let mut n = 0;
@@ -84,7 +85,9 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
             "mon groups=11",
             "gmon groups=11",
             "rwmc kappa=2",
-            "rwmc kappa=32"
+            "rwmc kappa=32",
+            "clamp C=1",
+            "clamp C=10"
         ]
     );
 
@@ -97,6 +100,7 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
         pathdensity::config::Method::Trimmed,
         pathdensity::config::Method::Mon,
         pathdensity::config::Method::Rwmc,
+        pathdensity::config::Method::Clamp,
     ]
     .into_iter()
     .collect();
@@ -108,8 +112,10 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
     assert_eq!(by("mon groups=11"), fr.metrics["mon"].pooled);
     assert_eq!(by("rwmc kappa=32"), fr.metrics["rwmc"].pooled);
     assert_ne!(by("rwmc kappa=2"), by("rwmc kappa=32"));
+    assert_eq!(by("clamp C=10"), fr.metrics["clamp"].pooled);
+    assert_ne!(by("clamp C=1"), by("clamp C=10"));
     let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
-    assert_eq!(csv.lines().count(), 1 + 24 + 10);
+    assert_eq!(csv.lines().count(), 1 + 24 + 12);
     assert_eq!(csv.matches("failed:").count(), 16);
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("sweep.json")).unwrap()).unwrap();
@@ -176,6 +182,7 @@ fn equal_time_rows_are_prefix_renders_at_matching_time() {
             Method::Mon,
             Method::Gmon,
             Method::Rwmc,
+            Method::Clamp,
         ]
         .into_iter()
         .collect();
@@ -198,8 +205,16 @@ fn equal_time_rows_are_prefix_renders_at_matching_time() {
             "{r:?}"
         );
         let names: Vec<&str> = r.peers.iter().map(|p| p.0.as_str()).collect();
-        assert_eq!(names, ["mon groups=11", "gmon groups=11", "rwmc kappa=32"]);
-        for ((_, m), method) in r.peers.iter().zip(["mon", "gmon", "rwmc"]) {
+        assert_eq!(
+            names,
+            [
+                "mon groups=11",
+                "gmon groups=11",
+                "rwmc kappa=32",
+                "clamp C=10"
+            ]
+        );
+        for ((_, m), method) in r.peers.iter().zip(["mon", "gmon", "rwmc", "clamp"]) {
             assert_eq!(*m, prefix_metrics(r.mean_spp, method), "{method}");
         }
         assert!(r.mean_seconds <= r.filtered_seconds);

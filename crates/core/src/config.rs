@@ -107,6 +107,8 @@ pub struct FilterConfig {
     pub rwmc_min_luminance: f64,
     /// filtered_energy: σ (pixels) of the spread of the removed energy.
     pub energy_sigma: f64,
+    /// clamp: the largest RGB component a sample may keep (C).
+    pub clamp: f64,
     /// Exposure of the display transform (RMS_display, previews).
     pub exposure: f64,
 }
@@ -133,6 +135,7 @@ impl FilterConfig {
         rwmc_kappa: 32.0,
         rwmc_min_luminance: 0.05,
         energy_sigma: 8.0,
+        clamp: 10.0,
         exposure: 1.0,
     };
 
@@ -152,6 +155,7 @@ impl FilterConfig {
             ("bilateral_sigma_r", self.bilateral_sigma_r),
             ("rwmc_start", self.rwmc_start),
             ("rwmc_kappa", self.rwmc_kappa),
+            ("clamp", self.clamp),
         ] {
             if !positive(v) {
                 return bad(field, format!("must be a positive finite number, got {v}"));

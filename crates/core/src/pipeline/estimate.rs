@@ -17,7 +17,7 @@ use crate::imagespace;
 use crate::recon::groups::PixelGroups;
 use crate::recon::mon::{self, MonImages};
 use crate::recon::robust::{self, RobustImages};
-use crate::recon::{Image, Reconstruction, energy, rwmc};
+use crate::recon::{Image, Reconstruction, clamp, energy, rwmc};
 
 /// The mean and filtered images and what the image-space methods need.
 pub struct Core {
@@ -127,6 +127,9 @@ impl<'s, 'a> Estimators<'s, 'a> {
                 }),
             ),
             Method::Rwmc => timed(|| rwmc::rwmc(records, h, &c.rwmc())),
+            Method::Clamp => {
+                timed(|| clamp::clamped_mean(records, h, c.recon.filter(), c.clamp, &rec.occupancy))
+            }
             Method::FilteredEnergy => after(
                 filtered_s,
                 timed(|| {

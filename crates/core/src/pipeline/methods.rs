@@ -33,10 +33,13 @@ pub enum Method {
     /// The filtered image with the removed energy spread back
     /// ([`crate::recon::energy`]).
     FilteredEnergy,
+    /// Every sample clamped to a largest component of C, then the mean
+    /// (pbrt-v4's `maxcomponentvalue`; [`crate::recon::clamp`]).
+    Clamp,
 }
 
 impl Method {
-    pub const ALL: [Method; 11] = [
+    pub const ALL: [Method; 12] = [
         Method::Mean,
         Method::Filtered,
         Method::Median,
@@ -48,6 +51,7 @@ impl Method {
         Method::Gmon,
         Method::Rwmc,
         Method::FilteredEnergy,
+        Method::Clamp,
     ];
 
     pub fn name(self) -> &'static str {
@@ -63,6 +67,7 @@ impl Method {
             Method::Gmon => "gmon",
             Method::Rwmc => "rwmc",
             Method::FilteredEnergy => "filtered_energy",
+            Method::Clamp => "clamp",
         }
     }
 

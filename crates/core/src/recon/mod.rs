@@ -2,6 +2,7 @@
 //! reconstruction filter W, accumulated in f64 in file order so that the
 //! result does not depend on the thread count.
 
+pub mod clamp;
 pub mod energy;
 pub mod groups;
 pub mod median;
@@ -52,7 +53,12 @@ impl Film {
     /// Splats a valid record.
     #[inline]
     pub fn splat(&mut self, r: &Record) {
-        let c = [r.r as f64, r.g as f64, r.b as f64];
+        self.splat_rgb(r, [r.r as f64, r.g as f64, r.b as f64]);
+    }
+
+    /// Splats colour `c` at a valid record's position.
+    #[inline]
+    pub fn splat_rgb(&mut self, r: &Record, c: [f64; 3]) {
         let frame_base = r.t as usize * self.width * self.height;
         match self.filter {
             ReconFilter::Box => {

@@ -85,6 +85,7 @@ pub fn equal_time(
         },
         mon_groups: *o.mon_groups.first().unwrap_or(&base.mon_groups),
         rwmc_kappa: *o.rwmc_kappas.first().unwrap_or(&base.rwmc_kappa),
+        clamp: *o.clamps.first().unwrap_or(&base.clamp),
         ..*base
     };
     pipeline::check(&config, dump.records(), &h)?;
@@ -100,6 +101,7 @@ pub fn equal_time(
             peer(Method::Mon, format!("mon groups={}", config.mon_groups)),
             peer(Method::Gmon, format!("gmon groups={}", config.mon_groups)),
             peer(Method::Rwmc, format!("rwmc kappa={}", config.rwmc_kappa)),
+            peer(Method::Clamp, format!("clamp C={}", config.clamp)),
         ];
         (compare(&core.reconstruction.mean), peers)
     };

@@ -39,6 +39,15 @@ pub struct SweepOptions {
     pub mon_groups: Vec<usize>,
     /// κ values of the rwmc baseline.
     pub rwmc_kappas: Vec<f64>,
+    /// C values of the clamp baseline.
+    pub clamps: Vec<f64>,
+}
+
+/// The peer methods' configurations, one per swept value.
+struct Peers {
+    mon: Vec<FilterConfig>,
+    rwmc: Vec<FilterConfig>,
+    clamp: Vec<FilterConfig>,
 }
 
 impl SweepOptions {
@@ -61,37 +70,38 @@ impl SweepOptions {
             threads: 0,
             mon_groups: vec![d.mon_groups],
             rwmc_kappas: vec![d.rwmc_kappa],
+            clamps: vec![d.clamp],
         }
     }
 
     /// The base configuration with each peer value swept, checked:
-    /// one per mon/gmon group count, one per rwmc κ.
-    fn peer_configs(&self) -> Result<(Vec<FilterConfig>, Vec<FilterConfig>)> {
-        if self.mon_groups.is_empty() || self.rwmc_kappas.is_empty() {
-            bail!("mon_groups and rwmc_kappa need one or more values");
+    /// one per mon/gmon group count, one per rwmc κ, one per clamp C.
+    fn peer_configs(&self) -> Result<Peers> {
+        if self.mon_groups.is_empty() || self.rwmc_kappas.is_empty() || self.clamps.is_empty() {
+            bail!("mon_groups, rwmc_kappa and clamp need one or more values");
         }
-        let checked = |c: FilterConfig| c.validate().map(|_| c);
-        let mon = self
-            .mon_groups
-            .iter()
-            .map(|&mon_groups| {
-                checked(FilterConfig {
-                    mon_groups,
-                    ..self.config
-                })
-            })
-            .collect::<Result<_, _>>()?;
-        let rwmc = self
-            .rwmc_kappas
-            .iter()
-            .map(|&rwmc_kappa| {
-                checked(FilterConfig {
-                    rwmc_kappa,
-                    ..self.config
-                })
-            })
-            .collect::<Result<_, _>>()?;
-        Ok((mon, rwmc))
+        let vary = |set: &dyn Fn(&mut FilterConfig)| {
+            let mut c = self.config;
+            set(&mut c);
+            c.validate().map(|_| c)
+        };
+        Ok(Peers {
+            mon: self
+                .mon_groups
+                .iter()
+                .map(|&g| vary(&|c| c.mon_groups = g))
+                .collect::<Result<_, _>>()?,
+            rwmc: self
+                .rwmc_kappas
+                .iter()
+                .map(|&k| vary(&|c| c.rwmc_kappa = k))
+                .collect::<Result<_, _>>()?,
+            clamp: self
+                .clamps
+                .iter()
+                .map(|&v| vary(&|c| c.clamp = v))
+                .collect::<Result<_, _>>()?,
+        })
     }
 }
 
@@ -164,7 +174,7 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
         bail!("every swept list needs at least one value");
     }
     o.config.validate()?;
-    let (mon_configs, rwmc_configs) = o.peer_configs()?;
+    let peers = o.peer_configs()?;
     let dump = DumpReader::open(&o.dump)?;
     let h = dump.header().clone();
     let records = dump.records();
@@ -208,13 +218,16 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
         ] {
             add(base, m, m.name().to_string());
         }
-        for c in &mon_configs {
+        for c in &peers.mon {
             for m in [Method::Mon, Method::Gmon] {
                 add(c, m, format!("{m} groups={}", c.mon_groups));
             }
         }
-        for c in &rwmc_configs {
+        for c in &peers.rwmc {
             add(c, Method::Rwmc, format!("rwmc kappa={}", c.rwmc_kappa));
+        }
+        for c in &peers.clamp {
+            add(c, Method::Clamp, format!("clamp C={}", c.clamp));
         }
         (baselines, valid)
     });
