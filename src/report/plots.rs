@@ -118,7 +118,8 @@ pub fn slice_svg(
         }
     }
     let step = (acc.len() + rej.len()).div_ceil(SLICE_POINTS).max(1);
-    let y_max = acc.iter().chain(&rej).map(|p| p.1).fold(1.0f64, f64::max) * 2.0;
+    // Two decades of headroom on the log axis for the legend (upper right).
+    let y_max = acc.iter().chain(&rej).map(|p| p.1).fold(1.0f64, f64::max) * 100.0;
     to_svg((900, 420), |root| {
         let e = |e: DrawingAreaErrorKind<_>| e.to_string();
         root.fill(&WHITE).map_err(e)?;
@@ -159,6 +160,7 @@ pub fn slice_svg(
             .legend(|p| Cross::new(p, 4, RED.stroke_width(2)));
         chart
             .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
             .draw()

@@ -120,7 +120,8 @@ fn chart_time<DB: DrawingBackend>(s: &Sweep, root: DrawingArea<DB, Shift>) -> Re
         .iter()
         .map(|b| b.metrics.rms)
         .fold(0.0, f64::max);
-    let e_max = baselines_max.min(3.0 * configs_max).max(configs_max) * 1.1;
+    // Headroom above the data for the legend (drawn upper right).
+    let e_max = baselines_max.min(3.0 * configs_max).max(configs_max) * 1.4;
     let e = |e: DrawingAreaErrorKind<_>| e.to_string();
     root.fill(&WHITE).map_err(e)?;
     let mut chart = ChartBuilder::on(&root)
@@ -174,6 +175,7 @@ fn chart_time<DB: DrawingBackend>(s: &Sweep, root: DrawingArea<DB, Shift>) -> Re
     }
     chart
         .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()
@@ -212,7 +214,18 @@ fn chart_k<DB: DrawingBackend>(s: &Sweep, root: DrawingArea<DB, Shift>) -> Resul
         }
     }
     let k_max = s.rows.iter().map(|r| r.k).max().unwrap_or(1).max(2) as f64 * 1.5;
-    let e_max = s.ok_rows().map(|(_, m)| m.rms).fold(1e-6, f64::max) * 1.1;
+    // Headroom above the data for the legend (drawn upper right), and for
+    // the mean's line.
+    let mean_rms = s
+        .baselines
+        .iter()
+        .find(|b| b.method == "mean")
+        .map_or(0.0, |b| b.metrics.rms);
+    let e_max = s
+        .ok_rows()
+        .map(|(_, m)| m.rms)
+        .fold(mean_rms.max(1e-6), f64::max)
+        * 1.4;
     let e = |e: DrawingAreaErrorKind<_>| e.to_string();
     root.fill(&WHITE).map_err(e)?;
     let mut chart = ChartBuilder::on(&root)
@@ -254,6 +267,7 @@ fn chart_k<DB: DrawingBackend>(s: &Sweep, root: DrawingArea<DB, Shift>) -> Resul
     }
     chart
         .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .label_font(("sans-serif", 11))
