@@ -82,12 +82,26 @@ fn a_killed_filter_leaves_complete_files_and_the_previous_outputs() {
 
     let big = dir.path().join("big.pds");
     SynthParams::default().write(&big).unwrap();
-    for (signal, ms) in [
+    let dump_of = |out: &Path| -> String {
+        let t = std::fs::read_to_string(out.join("report.json")).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&t).unwrap();
+        v["dump"].as_str().unwrap().to_string()
+    };
+    // Fixed points, then pseudo-random ones (seeded: the same every run)
+    // up to past the run's end: the folder is the previous run, whole, or
+    // the new one, whole — never a mix.
+    let mut rng = common::Rng(7);
+    let random = (0..6).map(|i| {
+        let signal = ["-KILL", "-INT", "-TERM"][i % 3];
+        (signal, 100 + (rng.f32() * 4500.0) as u64)
+    });
+    let fixed = [
         ("-KILL", 300),
         ("-INT", 900),
         ("-KILL", 1600),
         ("-KILL", 2600),
-    ] {
+    ];
+    for (signal, ms) in fixed.into_iter().chain(random) {
         let mut child = Command::new(bin)
             .args(["filter", big.to_str().unwrap(), "-o", out.to_str().unwrap()])
             .stdout(std::process::Stdio::null())
@@ -96,11 +110,42 @@ fn a_killed_filter_leaves_complete_files_and_the_previous_outputs() {
             .unwrap();
         std::thread::sleep(Duration::from_millis(ms));
         kill(&mut child, signal);
-        assert_eq!(
-            every_final_file_is_complete(&out),
-            before,
-            "after {signal} at {ms} ms"
-        );
+        let n = every_final_file_is_complete(&out);
+        let made_from = dump_of(&out);
+        if made_from == small.to_str().unwrap() {
+            assert_eq!(
+                n, before,
+                "after {signal} at {ms} ms: the previous run, whole"
+            );
+        } else {
+            // The new run had swapped in before the signal: whole too.
+            assert_eq!(made_from, big.to_str().unwrap());
+            assert!(n >= before, "after {signal} at {ms} ms: {n} files");
+            // Start over from the small run for the next point.
+            let ok = Command::new(bin)
+                .args([
+                    "filter",
+                    small.to_str().unwrap(),
+                    "-o",
+                    out.to_str().unwrap(),
+                ])
+                .output()
+                .unwrap();
+            assert!(ok.status.success());
+        }
+        // Nothing hidden beside OUTDIR but a SIGKILLed run's staging
+        // folder (SIGKILL cannot be caught), cleared here for the next point.
+        for e in std::fs::read_dir(dir.path()).unwrap() {
+            let e = e.unwrap();
+            let name = e.file_name().to_string_lossy().into_owned();
+            if name.starts_with('.') {
+                assert_eq!(
+                    signal, "-KILL",
+                    "after {signal} at {ms} ms: {name} left behind"
+                );
+                std::fs::remove_dir_all(e.path()).unwrap();
+            }
+        }
     }
 }
 
