@@ -49,3 +49,16 @@ pub fn clean_up_on_signals() {
         std::process::exit(130);
     });
 }
+
+/// A binary's `main` around its job: temporaries removed on signals, an
+/// error printed as one line `NAME: …` with exit code 1.
+pub fn run_main(name: &str, job: impl FnOnce() -> anyhow::Result<()>) -> std::process::ExitCode {
+    clean_up_on_signals();
+    match job() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("{name}: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}

@@ -67,16 +67,19 @@ fn a_killed_filter_leaves_complete_files_and_the_previous_outputs() {
     .write(&small)
     .unwrap();
     let bin = env!("CARGO_BIN_EXE_pathdensity");
-    let ok = Command::new(bin)
-        .args([
-            "filter",
-            small.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
-    assert!(ok.status.success());
+    let filter_small = || {
+        let ok = Command::new(bin)
+            .args([
+                "filter",
+                small.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
+        assert!(ok.status.success());
+    };
+    filter_small();
     let before = every_final_file_is_complete(&out);
     assert!(before >= 19);
 
@@ -122,16 +125,7 @@ fn a_killed_filter_leaves_complete_files_and_the_previous_outputs() {
             assert_eq!(made_from, big.to_str().unwrap());
             assert!(n >= before, "after {signal} at {ms} ms: {n} files");
             // Start over from the small run for the next point.
-            let ok = Command::new(bin)
-                .args([
-                    "filter",
-                    small.to_str().unwrap(),
-                    "-o",
-                    out.to_str().unwrap(),
-                ])
-                .output()
-                .unwrap();
-            assert!(ok.status.success());
+            filter_small();
         }
         // Nothing hidden beside OUTDIR but a SIGKILLed run's staging
         // folder (SIGKILL cannot be caught), cleared here for the next point.

@@ -120,12 +120,5 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 }
 
 fn main() -> ExitCode {
-    pathdensity::cli::clean_up_on_signals();
-    match run(Cli::parse()) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("render: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
+    pathdensity::cli::run_main("render", || run(Cli::parse()))
 }
