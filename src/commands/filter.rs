@@ -156,7 +156,11 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
         outputs: Vec::new(),
         warnings: run.warnings.clone(),
         provenance: Provenance {
-            program: format!("pathdensity {}", env!("CARGO_PKG_VERSION")),
+            program: format!(
+                "pathdensity {} (commit {})",
+                env!("CARGO_PKG_VERSION"),
+                env!("PATHDENSITY_COMMIT")
+            ),
             command: std::env::args().collect(),
             dump_xxh3: format!("{:016x}", dump.content_hash()),
             reference_xxh3: reference

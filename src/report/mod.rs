@@ -84,7 +84,7 @@ pub struct FilterReport {
 /// batch can tell a finished output from a stale one.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Provenance {
-    /// `pathdensity` and its version.
+    /// `pathdensity`, its version and the git commit it was built from.
     pub program: String,
     /// The command line, one argument each.
     pub command: Vec<String>,

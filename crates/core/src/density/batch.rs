@@ -244,7 +244,10 @@ impl<S: Default> Worker<S> {
         }
     }
 
-    /// One per thread of the current rayon pool, sharing one seed cache.
+    /// One per thread of the current rayon pool, sharing one seed cache,
+    /// found by the pool's thread index. Not `thread_local::ThreadLocal`:
+    /// the workers live for one replay and belong to its pool, not to the
+    /// threads, and each lock is only ever taken by its own thread.
     pub(super) fn per_thread(k: usize, slots: usize) -> Vec<Mutex<Worker<S>>> {
         let cache = Arc::new(SeedCache::new(k, slots));
         (0..crate::par::current_num_threads())
