@@ -16,11 +16,17 @@ pub fn write_frame(path: &Path, img: &Image, frame: usize) -> Result<()> {
     let px = img.frame(frame);
     let w = img.width;
     let f = AtomicFile::create(path)?;
-    write_rgb_file(f.tmp_path(), img.width, img.height, |x, y| {
+    // Compressed on one thread: exr's parallel writer files the chunks in
+    // the order they finish, so the same image could give other bytes.
+    let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
         let p = px[y * w + x];
         (finite_f32(p[0]), finite_f32(p[1]), finite_f32(p[2]))
-    })
-    .map_err(|e| Error::format(path, format!("cannot write EXR: {e}")))?;
+    });
+    exr::prelude::Image::from_channels((img.width, img.height), channels)
+        .write()
+        .non_parallel()
+        .to_file(f.tmp_path())
+        .map_err(|e| Error::format(path, format!("cannot write EXR: {e}")))?;
     f.commit()
 }
 
@@ -90,4 +96,37 @@ pub fn read_reference(path: &Path, width: usize, height: usize, frames: usize) -
         img.data[f * width * height..(f + 1) * width * height].copy_from_slice(&px);
     }
     Ok(img)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The same image gives the same bytes, however many times it is
+    /// written (exr's parallel writer filed chunks in finishing order).
+    #[test]
+    fn writing_is_deterministic() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut img = Image::new(256, 192, 1);
+        let mut s = 12345u64;
+        for p in img.data.iter_mut() {
+            for c in p.iter_mut() {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                *c = (s >> 11) as f64 / (1u64 << 53) as f64 * 100.0;
+            }
+        }
+        let first = dir.path().join("a.exr");
+        write_frame(&first, &img, 0).unwrap();
+        let want = std::fs::read(&first).unwrap();
+        for i in 0..8 {
+            let p = dir.path().join(format!("b{i}.exr"));
+            write_frame(&p, &img, 0).unwrap();
+            assert!(std::fs::read(&p).unwrap() == want, "write {i} differs");
+        }
+        let (w, h, px) = read_rgb(&first).unwrap();
+        assert_eq!((w, h), (256, 192));
+        assert_eq!(px[1000][1], img.data[1000][1] as f32 as f64);
+    }
 }
