@@ -90,7 +90,8 @@ pub struct Provenance {
     pub command: Vec<String>,
     /// XXH3-64 of the dump's header and records, in hex.
     pub dump_xxh3: String,
-    /// XXH3-64 of the reference file(s) read, in hex (frame after frame).
+    /// XXH3-64 of the reference as read (its size and every pixel's
+    /// bits, frame after frame), in hex.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reference_xxh3: Option<String>,
     /// When the run started, seconds since 1970-01-01 UTC.

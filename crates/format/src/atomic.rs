@@ -43,7 +43,13 @@ pub fn remove_temporaries() {
     let t = TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner());
     for p in t.iter() {
         if p.is_dir() {
-            let _ = std::fs::remove_dir_all(p);
+            // Workers may still be adding files to a staging folder while
+            // it is removed, which makes one removal fail: try again.
+            for _ in 0..50 {
+                if std::fs::remove_dir_all(p).is_ok() || !p.exists() {
+                    break;
+                }
+            }
         } else {
             let _ = std::fs::remove_file(p);
         }

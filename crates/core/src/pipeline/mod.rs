@@ -130,19 +130,37 @@ pub fn check(
         .iter()
         .filter(|r| r.validity(header) == Validity::Valid)
         .count() as u64;
+    check_counted(config, header, valid)?;
+    Ok(valid)
+}
+
+/// k against the number of valid samples: at or above it every σ is +∞
+/// and every sample rejected.
+pub fn k_fits(k: usize, valid: u64) -> Result<(), PipelineError> {
     if valid == 0 {
         return Err(PipelineError::NoValidSample);
     }
-    if config.k as u64 >= valid {
+    if k as u64 >= valid {
         return Err(ConfigError {
             field: "k",
             problem: format!(
                 "{} needs more than {valid} valid samples: every sample would be rejected",
-                config.k
+                k
             ),
         }
         .into());
     }
+    Ok(())
+}
+
+/// [`check`] for a caller that has counted the valid samples already (a
+/// sweep, once for all its configurations); `config` is valid.
+pub fn check_counted(
+    config: &FilterConfig,
+    header: &Header,
+    valid: u64,
+) -> Result<(), PipelineError> {
+    k_fits(config.k, valid)?;
     // Coordinates beyond this would round to ±∞ in f32 (docs/filter.md, F4).
     const MAX_COORD: f64 = 1e30;
     let film = header.width.max(header.height) as f64;
@@ -166,7 +184,7 @@ pub fn check(
         }
         .into());
     }
-    Ok(valid)
+    Ok(())
 }
 
 /// What a user should hear about a run that succeeded: most samples

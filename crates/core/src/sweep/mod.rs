@@ -15,7 +15,7 @@ use crate::dump::{DumpReader, Header, Record};
 use crate::io::exr;
 use crate::metrics::{self, Metrics};
 use crate::pipeline::estimate::{Estimators, Shared};
-use crate::pipeline::{self, thread_pool};
+use crate::pipeline::{self, PipelineError, thread_pool};
 use crate::progress::Progress;
 use crate::recon::Image;
 
@@ -281,14 +281,18 @@ fn configuration(
     let mut row = Row::unrun(config, white_value);
     // A k the dump cannot serve is the first thing a sweep's reader needs
     // to know about a row, before any other refusal.
-    if config.k > 0 && config.k as u64 >= valid {
-        row.failure = Some(format!(
-            "k = {} needs more than {valid} valid samples: every sample would be rejected",
-            config.k
-        ));
-        return row;
-    }
-    if let Err(e) = pipeline::check(config, records, h) {
+    // The dump's valid samples were counted once for the whole sweep.
+    // k first: a k the dump cannot serve is what a sweep's reader needs
+    // to know about a row before any other refusal.
+    let k_first = if config.k > 0 {
+        pipeline::k_fits(config.k, valid)
+    } else {
+        Ok(())
+    };
+    let refused = k_first
+        .and_then(|()| config.validate().map_err(PipelineError::from))
+        .and_then(|()| pipeline::check_counted(config, h, valid));
+    if let Err(e) = refused {
         row.failure = Some(e.to_string());
         return row;
     }
