@@ -3,7 +3,7 @@
 A dump is: b"PDSDUMP1", u32 version = 1, u32 header_len, the header (bincode 2,
 fixed-width little-endian integers, strings as u64 length + UTF-8), zero
 padding up to a multiple of 64 bytes, then records of six little-endian f32:
-x, y, t, r, g, b. See README.md ("The dump format") for the fields.
+x, y, t, r, g, b. See docs/format.md for the fields.
 
     import pds
     hdr, rec = pds.read("scene.pds")          # rec is a read-only np.memmap
@@ -89,27 +89,79 @@ def read(path):
     return hdr, np.memmap(path, RECORD, "r", offset=off, shape=(hdr["sample_count"],))
 
 
+class Presized:
+    """A dump of a known record count, filled by index and renamed into place.
+
+        with pds.Presized("out.pds", n, width=w, height=h, spp=s, order="pass") as rec:
+            rec[i:j] = chunk          # any (k, 6) float array or RECORD array
+
+    The records are a writable np.memmap of RECORD under a temporary name; the
+    file appears under its own name only when the block ends without an
+    exception, and is removed otherwise."""
+
+    def __init__(self, path, sample_count, width, height, frames=1, spp=0,
+                 order=0, scene="", seed=0, producer="tools/pds.py"):
+        body = encode_header(width, height, frames, spp, sample_count, order,
+                             scene, seed, producer)
+        if len(body) > HEADER_LEN_MAX:
+            raise ValueError("header too long")
+        prefix = MAGIC + struct.pack("<II", VERSION, len(body)) + body
+        self._prefix = prefix + b"\0" * (_data_offset(len(body)) - len(prefix))
+        self._path, self._count = path, sample_count
+        self._tmp = f"{path}.tmp-{os.getpid()}"
+        self._records = None
+
+    def __enter__(self):
+        with open(self._tmp, "wb") as f:
+            f.write(self._prefix)
+            f.truncate(len(self._prefix) + 24 * self._count)
+        if self._count:
+            self._records = _RecordView(np.memmap(
+                self._tmp, RECORD, "r+", offset=len(self._prefix), shape=(self._count,)))
+        else:
+            self._records = _RecordView(np.zeros(0, RECORD))
+        return self._records
+
+    def __exit__(self, kind, value, tb):
+        records, self._records = self._records, None
+        if kind is None and isinstance(records.array, np.memmap):
+            records.array.flush()
+        del records
+        if kind is None:
+            os.replace(self._tmp, self._path)
+        elif os.path.exists(self._tmp):
+            os.remove(self._tmp)
+        return False
+
+
+class _RecordView:
+    """Index assignment that takes (k, 6) float arrays as well as RECORD arrays."""
+
+    def __init__(self, array):
+        self.array = array
+
+    def __len__(self):
+        return len(self.array)
+
+    def __setitem__(self, index, values):
+        self.array[index] = _as_records(values)
+
+
+def _as_records(values):
+    values = np.asarray(values)
+    if values.dtype == RECORD:
+        return values
+    return np.ascontiguousarray(values, dtype="<f4").reshape(-1, 6).view(RECORD).ravel()
+
+
 def write(path, records, width, height, frames=1, spp=0, order=0, scene="",
           seed=0, producer="tools/pds.py"):
     """Writes records (anything convertible to RECORD, or an (n, 6) float
     array) to path, under a temporary name renamed into place."""
-    records = np.asarray(records)
-    if records.dtype != RECORD:
-        records = np.ascontiguousarray(records, dtype="<f4").reshape(-1, 6).view(RECORD).ravel()
-    body = encode_header(width, height, frames, spp, len(records), order, scene, seed, producer)
-    if len(body) > HEADER_LEN_MAX:
-        raise ValueError("header too long")
-    prefix = MAGIC + struct.pack("<II", VERSION, len(body)) + body
-    prefix += b"\0" * (_data_offset(len(body)) - len(prefix))
-    tmp = f"{path}.tmp-{os.getpid()}"
-    try:
-        with open(tmp, "wb") as f:
-            f.write(prefix)
-            f.write(records.astype(RECORD, copy=False).tobytes())
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    records = _as_records(records)
+    with Presized(path, len(records), width, height, frames, spp, order, scene,
+                  seed, producer) as out:
+        out[:] = records
 
 
 if __name__ == "__main__":
