@@ -86,13 +86,17 @@ fn bias_scores(w: usize, mean: &[[f64; 3]], other: &[[f64; 3]], var: &[[f64; 3]]
     let grad = |p: usize, c: usize, dx: usize| -> f64 {
         let (x, y) = (p % w, p / w);
         let (lo, hi) = if dx == 1 {
-            (x > 0 && x + 1 < w)
-                .then(|| (p - 1, p + 1))
-                .unwrap_or((p, p))
+            if x > 0 && x + 1 < w {
+                (p - 1, p + 1)
+            } else {
+                (p, p)
+            }
         } else {
-            (y > 0 && y + 1 < h)
-                .then(|| (p - w, p + w))
-                .unwrap_or((p, p))
+            if y > 0 && y + 1 < h {
+                (p - w, p + w)
+            } else {
+                (p, p)
+            }
         };
         (other[hi][c] - other[lo][c]) / 2.0
     };
