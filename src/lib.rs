@@ -11,7 +11,7 @@ pub use pathdensity_core::{
     config, density, imagespace, joint, metrics, pipeline, progress, quantile, recon, regress,
     sweep, synth,
 };
-pub use pathdensity_format::dump;
+pub use pathdensity_format::{dump, image};
 
 /// Files in and out: atomic writes and EXR (`pathdensity-format`), PNG
 /// previews.

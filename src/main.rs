@@ -225,6 +225,10 @@ enum Command {
         #[arg(long)]
         bless: bool,
     },
+    /// Write a dump from another renderer's per-sample data
+    /// (docs/renderers.md).
+    #[command(subcommand)]
+    Import(ImportSource),
     /// Write a synthetic dump (smooth field, fireflies, optional small light).
     Synth {
         #[arg(short, long)]
@@ -250,6 +254,94 @@ enum Command {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+}
+
+#[derive(Subcommand)]
+enum ImportSource {
+    /// N renders of one view at 1 spp with different seeds (EXR), in replay
+    /// order: a pass-major dump of N spp, samples at pixel centres.
+    Images {
+        /// The images, in order.
+        #[arg(required = true)]
+        images: Vec<PathBuf>,
+        /// The dump to write.
+        #[arg(short, long)]
+        out: PathBuf,
+    },
+    /// A numpy .npy array of shape (N, 6), float32: x, y, t, r, g, b.
+    Npy {
+        /// The .npy file.
+        file: PathBuf,
+        #[arg(long)]
+        width: u32,
+        #[arg(long)]
+        height: u32,
+        /// Samples per pixel per frame; when given, N must be
+        /// width × height × frames × spp.
+        #[arg(long, default_value_t = 0)]
+        spp: u32,
+        #[arg(long, default_value_t = 1)]
+        frames: u32,
+        /// The order the rows are in (the filter replays it).
+        #[arg(long, value_enum)]
+        order: Option<OrderArg>,
+        /// The dump to write.
+        #[arg(short, long)]
+        out: PathBuf,
+    },
+    /// A BCD raw sample file (the input of BCD's raw2bcd): a pixel-major
+    /// dump, samples at pixel centres.
+    Bcd {
+        /// The raw file.
+        file: PathBuf,
+        /// The dump to write.
+        #[arg(short, long)]
+        out: PathBuf,
+    },
+}
+
+impl From<OrderArg> for Order {
+    fn from(o: OrderArg) -> Order {
+        match o {
+            OrderArg::Pixel => Order::PixelMajor,
+            OrderArg::Pass => Order::PassMajor,
+        }
+    }
+}
+
+fn import(source: ImportSource) -> anyhow::Result<()> {
+    use pathdensity_import::{bcd, images, npy};
+    let (out, done) = match source {
+        ImportSource::Images { images, out } => {
+            let r = images::import(&images, &out);
+            (out, r)
+        }
+        ImportSource::Npy {
+            file,
+            width,
+            height,
+            spp,
+            frames,
+            order,
+            out,
+        } => {
+            let film = npy::Film {
+                width,
+                height,
+                frames,
+                spp,
+                order: order.map_or(Order::Unspecified, Order::from),
+            };
+            let r = npy::import(&file, film, &out);
+            (out, r)
+        }
+        ImportSource::Bcd { file, out } => {
+            let r = bcd::import(&file, &out);
+            (out, r)
+        }
+    };
+    println!("{}: {}", out.display(), done?);
+    Ok(())
 }
 
 fn parse_light(s: &str) -> Result<(u32, u32, u32, f32), String> {
@@ -336,6 +428,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 ),
             }
         }
+        Command::Import(source) => import(source)?,
         Command::Regress { dir, bless } => {
             let o = regress::regress(&dir, bless)?;
             print!("{}", o.text);
@@ -364,10 +457,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 height,
                 frames,
                 spp,
-                order: match order {
-                    OrderArg::Pixel => Order::PixelMajor,
-                    OrderArg::Pass => Order::PassMajor,
-                },
+                order: order.into(),
                 firefly_fraction: fireflies,
                 pixel_centre,
                 light,

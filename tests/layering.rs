@@ -61,4 +61,19 @@ fn the_format_crate_and_the_renderer_depend_on_nothing_above_them() {
             "the renderer pulls in {banned}"
         );
     }
+    // Importers share only the format with the rest.
+    let import = dependencies("pathdensity-import");
+    assert!(import.contains(&"pathdensity-format".to_string()));
+    for banned in [
+        "pathdensity",
+        "pathdensity-core",
+        "pathdensity-render",
+        "clap",
+        "rayon",
+    ] {
+        assert!(
+            !import.iter().any(|d| d == banned),
+            "the importers pull in {banned}"
+        );
+    }
 }

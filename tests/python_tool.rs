@@ -7,14 +7,6 @@ use std::process::Command;
 use common::*;
 use pathdensity::dump::{DumpReader, Record};
 
-fn python_with_numpy() -> bool {
-    Command::new("python3")
-        .args(["-c", "import numpy"])
-        .status()
-        .map(|s| s.success())
-        .unwrap_or(false)
-}
-
 #[test]
 fn the_python_module_round_trips_dumps_with_the_library() {
     if !python_with_numpy() {

@@ -20,13 +20,13 @@ pub enum Error {
 }
 
 impl Error {
-    pub(crate) fn io(path: &std::path::Path, error: std::io::Error) -> Self {
+    pub fn io(path: &std::path::Path, error: std::io::Error) -> Self {
         Error::Io {
             path: path.display().to_string(),
             error,
         }
     }
-    pub(crate) fn format(path: &std::path::Path, problem: impl Into<String>) -> Self {
+    pub fn format(path: &std::path::Path, problem: impl Into<String>) -> Self {
         Error::Format {
             path: path.display().to_string(),
             problem: problem.into(),
