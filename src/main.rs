@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use pathdensity::commands::{filter, info, regress, sweep};
-use pathdensity::config::{ConfigError, FilterConfig, Method, Recon, White};
+use pathdensity::config::{ConfigError, Denoise, FilterConfig, Method, Recon, White};
 use pathdensity::density::IndexKind;
 use pathdensity::dump::Order;
 use pathdensity::sweep::SweepOptions;
@@ -51,7 +51,7 @@ struct ConfigArgs {
     /// grid or kdtree (results do not depend on it).
     #[arg(long, default_value_t = D.index)]
     index: IndexKind,
-    /// Images besides mean and filtered (default: all).
+    /// Images besides mean and filtered (default: all but oidn).
     #[arg(long, value_delimiter = ',')]
     methods: Option<Vec<Method>>,
     /// α of the trimmed mean: ⌊α n⌋ samples dropped at each end.
@@ -90,6 +90,10 @@ struct ConfigArgs {
     /// Exposure of the PNG previews and the display metrics.
     #[arg(long, default_value_t = D.exposure)]
     exposure: f64,
+    /// `oidn`: also denoise every selected method's image with Intel Open
+    /// Image Denoise (METHOD+oidn; needs a build with `--features oidn`).
+    #[arg(long, default_value_t = D.denoise)]
+    denoise: Denoise,
 }
 
 const D: FilterConfig = FilterConfig::DEFAULT;
@@ -117,6 +121,7 @@ impl From<ConfigArgs> for FilterConfig {
             energy_sigma: a.energy_sigma,
             clamp: a.clamp,
             exposure: a.exposure,
+            denoise: a.denoise,
         }
     }
 }

@@ -117,7 +117,7 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
     let dir = staging.path();
     let mut outputs = Vec::new();
     for e in &run.images {
-        outputs.extend(exr::write_image(dir, e.method.name(), &e.image)?);
+        outputs.extend(exr::write_image(dir, &e.name(), &e.image)?);
     }
     outputs.extend(exr::write_image(dir, "rejected", &run.removed)?);
     if let Some(img) = &run.sigma_image {
@@ -145,11 +145,7 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
         },
         metrics: run.metrics.clone(),
         reference: opts.reference.as_ref().map(|p| p.display().to_string()),
-        method_seconds: run
-            .images
-            .iter()
-            .map(|e| (e.method.name().to_string(), e.seconds))
-            .collect(),
+        method_seconds: run.images.iter().map(|e| (e.name(), e.seconds)).collect(),
         energy_removed: EnergyRemoved::new(&run.removed, mean),
         sigma_scale,
         slice_row,
@@ -199,8 +195,8 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
             assets.reference = Some(previews("reference", tone(r), &mut outputs)?);
         }
         for e in &run.images {
-            let frames = previews(e.method.name(), tone(&e.image), &mut outputs)?;
-            assets.images.push((e.method.name().to_string(), frames));
+            let frames = previews(&e.name(), tone(&e.image), &mut outputs)?;
+            assets.images.push((e.name(), frames));
         }
         let frames = previews("rejected", tone(&run.removed), &mut outputs)?;
         assets.images.push(("rejected".to_string(), frames));

@@ -7,6 +7,7 @@ use crate::density::FilterCounts;
 use crate::dump::Header;
 use crate::joint::lab::luminance;
 use crate::metrics::ImageMetrics;
+use crate::pipeline::image_name;
 use crate::recon::{Image, energy};
 
 pub mod html;
@@ -214,12 +215,14 @@ impl FilterReport {
     /// (image name, seconds, metrics) for every image written, in the
     /// canonical method order.
     pub fn method_rows(&self) -> Vec<(String, f64, Option<&ImageMetrics>)> {
-        Method::ALL
-            .iter()
-            .map(|m| m.name())
+        let names = [false, true]
+            .into_iter()
+            .flat_map(|denoised| Method::ALL.iter().map(move |&m| image_name(m, denoised)));
+        names
             .filter_map(|n| {
-                let secs = *self.method_seconds.get(n)?;
-                Some((n.to_string(), secs, self.metrics.get(n)))
+                let secs = *self.method_seconds.get(&n)?;
+                let metrics = self.metrics.get(&n);
+                Some((n, secs, metrics))
             })
             .collect()
     }

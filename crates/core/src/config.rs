@@ -27,6 +27,37 @@ pub use crate::pipeline::methods::{Method, MethodSet};
 use crate::recon::ReconFilter;
 use crate::recon::rwmc::RwmcParams;
 
+/// A learned denoiser run on every selected method's image as well
+/// (`METHOD+oidn`), or none.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Denoise {
+    #[default]
+    None,
+    /// Intel Open Image Denoise ([`crate::imagespace::oidn`]).
+    Oidn,
+}
+
+impl std::str::FromStr for Denoise {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Denoise, String> {
+        match s {
+            "none" => Ok(Denoise::None),
+            "oidn" => Ok(Denoise::Oidn),
+            _ => Err(format!("unknown denoiser {s:?} (none or oidn)")),
+        }
+    }
+}
+
+impl std::fmt::Display for Denoise {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str(match self {
+            Denoise::None => "none",
+            Denoise::Oidn => "oidn",
+        })
+    }
+}
+
 /// The reconstruction filter W by name (docs/filter.md, "Reconstruction").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -111,6 +142,8 @@ pub struct FilterConfig {
     pub clamp: f64,
     /// Exposure of the display transform (RMS_display, previews).
     pub exposure: f64,
+    /// Also denoise every selected method's image (`METHOD+oidn`).
+    pub denoise: Denoise,
 }
 
 impl FilterConfig {
@@ -124,7 +157,7 @@ impl FilterConfig {
         white: White::Fixed(1.0),
         recon: Recon::Box,
         index: IndexKind::Grid,
-        methods: MethodSet::ALL,
+        methods: MethodSet::DEFAULT,
         alpha: 0.1,
         bilateral_sigma_s: 2.0,
         bilateral_sigma_r: 20.0,
@@ -137,6 +170,7 @@ impl FilterConfig {
         energy_sigma: 8.0,
         clamp: 10.0,
         exposure: 1.0,
+        denoise: Denoise::None,
     };
 
     /// Checks every field; the error names the first bad one.
@@ -168,6 +202,16 @@ impl FilterConfig {
                 "white",
                 format!("must be `auto` or a positive number, got {v}"),
             );
+        }
+        if !crate::imagespace::oidn::AVAILABLE {
+            let why = "needs OIDN, and this build has none: build with `--features oidn` \
+                       after `bash tools/oidn/setup.sh` (README, \"OIDN\")";
+            if self.methods.contains(Method::Oidn) {
+                return bad("methods", format!("oidn {why}"));
+            }
+            if self.denoise == Denoise::Oidn {
+                return bad("denoise", format!("oidn {why}"));
+            }
         }
         if !(0.0..0.5).contains(&self.alpha) {
             return bad("alpha", format!("must lie in [0, 0.5), got {}", self.alpha));

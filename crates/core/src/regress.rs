@@ -166,11 +166,11 @@ fn run(dir: &Path, m: &Manifest) -> Result<Outcome> {
         },
     )
     .with_context(|| format!("{}", dir.join("manifest.json").display()))?;
-    let mut images: Vec<(&str, Image)> = Vec::new();
+    let mut images: Vec<(String, Image)> = Vec::new();
     for e in run.images.iter() {
-        images.push((e.method.name(), e.image.clone()));
+        images.push((e.name(), e.image.clone()));
     }
-    images.push(("rejected", run.removed.clone()));
+    images.push(("rejected".into(), run.removed.clone()));
     let mut files = Vec::new();
     for (name, img) in images {
         for f in 0..img.frames {
@@ -178,7 +178,7 @@ fn run(dir: &Path, m: &Manifest) -> Result<Outcome> {
             for (out, p) in frame.data.iter_mut().zip(img.frame(f)) {
                 *out = p.map(|v| stored(v) as f64);
             }
-            files.push((exr::frame_file_name(name, f, img.frames, "exr"), frame));
+            files.push((exr::frame_file_name(&name, f, img.frames, "exr"), frame));
         }
     }
     let expected = Expected {

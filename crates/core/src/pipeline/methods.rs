@@ -36,10 +36,13 @@ pub enum Method {
     /// Every sample clamped to a largest component of C, then the mean
     /// (pbrt-v4's `maxcomponentvalue`; [`crate::recon::clamp`]).
     Clamp,
+    /// Intel Open Image Denoise's `RT` filter on the mean
+    /// ([`crate::imagespace::oidn`]; only in builds with the `oidn` feature).
+    Oidn,
 }
 
 impl Method {
-    pub const ALL: [Method; 12] = [
+    pub const ALL: [Method; 13] = [
         Method::Mean,
         Method::Filtered,
         Method::Median,
@@ -52,6 +55,7 @@ impl Method {
         Method::Rwmc,
         Method::FilteredEnergy,
         Method::Clamp,
+        Method::Oidn,
     ];
 
     pub fn name(self) -> &'static str {
@@ -68,6 +72,7 @@ impl Method {
             Method::Rwmc => "rwmc",
             Method::FilteredEnergy => "filtered_energy",
             Method::Clamp => "clamp",
+            Method::Oidn => "oidn",
         }
     }
 
@@ -112,9 +117,19 @@ impl MethodSet {
     /// Mean and filtered.
     pub const CORE: MethodSet = MethodSet(1 << Method::Mean as u16 | 1 << Method::Filtered as u16);
     pub const ALL: MethodSet = MethodSet((1 << Method::ALL.len()) - 1);
+    /// What a run makes unless told otherwise: every method of the pure-Rust
+    /// build (OIDN is asked for by name, or with `denoise`).
+    pub const DEFAULT: MethodSet = MethodSet(MethodSet::ALL.0 & !(1 << Method::Oidn as u16));
 
     pub fn contains(self, m: Method) -> bool {
         self.0 & m.bit() != 0
+    }
+
+    /// This set without `m` (mean and filtered stay).
+    pub fn without(self, m: Method) -> MethodSet {
+        MethodSet(self.0 & !m.bit())
+            .with(Method::Mean)
+            .with(Method::Filtered)
     }
 
     /// This set and `m`.

@@ -10,7 +10,7 @@ pub mod methods;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use crate::config::{ConfigError, FilterConfig, White};
+use crate::config::{ConfigError, Denoise, FilterConfig, White};
 use crate::density::{self, Decision, FilterCounts, FilterResult, ReplayOptions};
 use crate::dump::{Header, Record, Validity};
 use crate::joint::white::auto_white;
@@ -29,6 +29,8 @@ pub enum PipelineError {
     Threads(#[from] crate::par::ThreadPoolBuildError),
     #[error("no valid sample: every record is non-finite or outside the film (see `info`)")]
     NoValidSample,
+    #[error("{method}: {problem}")]
+    Method { method: String, problem: String },
 }
 
 /// How to run, beyond the configuration: nothing here changes an image.
@@ -46,8 +48,44 @@ pub struct RunOptions<'a> {
 /// it shares with other images included.
 pub struct MethodImage {
     pub method: Method,
+    /// Denoised by `config.denoise` after `method` (`METHOD+oidn`).
+    pub denoised: bool,
     pub image: Image,
     pub seconds: f64,
+}
+
+impl MethodImage {
+    /// The image's name: the method's, `+oidn` when denoised.
+    pub fn name(&self) -> String {
+        image_name(self.method, self.denoised)
+    }
+}
+
+/// `method`'s image name, `METHOD+oidn` when denoised.
+pub fn image_name(method: Method, denoised: bool) -> String {
+    if denoised {
+        format!("{method}+oidn")
+    } else {
+        method.name().to_string()
+    }
+}
+
+/// The images a configuration makes, in order: every selected method, and
+/// with `denoise` OIDN on each of them too (`oidn` is the mean's, so there
+/// is no `mean+oidn`).
+pub fn images_of(config: &FilterConfig) -> Vec<(Method, bool)> {
+    let denoise = config.denoise == Denoise::Oidn;
+    let methods = if denoise {
+        config.methods.with(Method::Oidn)
+    } else {
+        config.methods
+    };
+    let plain = methods.iter().map(|m| (m, false));
+    let denoised = methods
+        .iter()
+        .filter(move |&m| denoise && m != Method::Mean && m != Method::Oidn)
+        .map(|m| (m, true));
+    plain.chain(denoised).collect()
 }
 
 /// Everything a run produced.
@@ -81,7 +119,10 @@ pub struct Run {
 
 impl Run {
     pub fn image(&self, m: Method) -> Option<&Image> {
-        self.images.iter().find(|e| e.method == m).map(|e| &e.image)
+        self.images
+            .iter()
+            .find(|e| e.method == m && !e.denoised)
+            .map(|e| &e.image)
     }
 }
 
@@ -276,19 +317,27 @@ pub fn run(
     let shared = Shared::new(records, header);
     let estimators = Estimators::new(&shared, config, white, &core);
     let images: Vec<MethodImage> = pool.install(|| {
-        config
-            .methods
-            .iter()
-            .map(|method| {
-                let (image, seconds) = estimators.image(method);
-                MethodImage {
+        images_of(config)
+            .into_iter()
+            .map(|(method, denoised)| {
+                let made = if denoised {
+                    estimators.denoised(method)
+                } else {
+                    estimators.image(method)
+                };
+                let (image, seconds) = made.map_err(|problem| PipelineError::Method {
+                    method: image_name(method, denoised),
+                    problem,
+                })?;
+                Ok(MethodImage {
                     method,
+                    denoised,
                     image,
                     seconds,
-                }
+                })
             })
-            .collect()
-    });
+            .collect::<Result<_, PipelineError>>()
+    })?;
     let sigma_image = result
         .sigma
         .as_ref()
@@ -298,7 +347,7 @@ pub fn run(
             .iter()
             .map(|e| {
                 let m = metrics::compare(&e.image, r, config.exposure);
-                (e.method.name().to_string(), m)
+                (e.name(), m)
             })
             .collect(),
         None => BTreeMap::new(),

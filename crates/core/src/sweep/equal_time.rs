@@ -96,14 +96,23 @@ pub fn equal_time(
         let core = pipeline::reconstruct(recs, &ph, &config, |_| true, 0.0);
         let shared = Shared::new(recs, &ph);
         let est = Estimators::new(&shared, &config, white, &core);
-        let peer = |m: Method, label: String| (label, compare(&est.image(m).0));
-        let peers = vec![
-            peer(Method::Mon, format!("mon groups={}", config.mon_groups)),
-            peer(Method::Gmon, format!("gmon groups={}", config.mon_groups)),
-            peer(Method::Rwmc, format!("rwmc kappa={}", config.rwmc_kappa)),
-            peer(Method::Clamp, format!("clamp C={}", config.clamp)),
+        let mut peers = vec![
+            (Method::Mon, format!("mon groups={}", config.mon_groups)),
+            (Method::Gmon, format!("gmon groups={}", config.mon_groups)),
+            (Method::Rwmc, format!("rwmc kappa={}", config.rwmc_kappa)),
+            (Method::Clamp, format!("clamp C={}", config.clamp)),
         ];
-        (compare(&core.reconstruction.mean), peers)
+        if crate::imagespace::oidn::AVAILABLE {
+            peers.push((Method::Oidn, "oidn".into()));
+        }
+        let peers = peers
+            .into_iter()
+            .map(|(m, label)| match est.image(m) {
+                Ok((img, _)) => Ok((label, compare(&img))),
+                Err(e) => Err(anyhow::anyhow!("{label}: {e}")),
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok::<_, anyhow::Error>((compare(&core.reconstruction.mean), peers))
     };
     let mut ms: Vec<u32> = std::iter::successors(Some(1u32), |m| m.checked_mul(2))
         .take_while(|&m| m < h.spp)
@@ -121,13 +130,15 @@ pub fn equal_time(
             let secs = t.elapsed().as_secs_f64();
             let shared = Shared::new(recs, &ph);
             let est = Estimators::new(&shared, &config, white, &core);
-            let (energy_aware, _) = est.image(Method::FilteredEnergy);
+            let (energy_aware, _) = est
+                .image(Method::FilteredEnergy)
+                .map_err(anyhow::Error::msg)?;
             drop(est);
-            (core.reconstruction.filtered, secs, energy_aware)
-        });
+            Ok::<_, anyhow::Error>((core.reconstruction.filtered, secs, energy_aware))
+        })?;
         let filtered_seconds = m as f64 * per_pass + filter_secs;
         let mean_spp = ((filtered_seconds / per_pass).floor() as u32).clamp(1, h.spp);
-        let (mean, peers) = pool.install(|| plain(mean_spp));
+        let (mean, peers) = pool.install(|| plain(mean_spp))?;
         rows.push(EqualTimeRow {
             spp: m,
             filtered_seconds,

@@ -202,35 +202,42 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
             .map(|&n| n as u64)
             .sum();
         let mut baselines = Vec::new();
-        let mut add = |c: &FilterConfig, method: Method, label: String| {
-            let (img, seconds) = Estimators::new(&shared, c, white, &core).image(method);
+        let mut add = |c: &FilterConfig, method: Method, label: String| -> Result<()> {
+            let (img, seconds) = Estimators::new(&shared, c, white, &core)
+                .image(method)
+                .map_err(|e| anyhow::anyhow!("{label}: {e}"))?;
             baselines.push(Baseline {
                 method: label,
                 seconds,
                 metrics: compare(&img),
             });
+            Ok(())
         };
+        let oidn = crate::imagespace::oidn::AVAILABLE.then_some(Method::Oidn);
         for m in [
             Method::Mean,
             Method::Median,
             Method::Trimmed,
             Method::Bilateral,
-        ] {
-            add(base, m, m.name().to_string());
+        ]
+        .into_iter()
+        .chain(oidn)
+        {
+            add(base, m, m.name().to_string())?;
         }
         for c in &peers.mon {
             for m in [Method::Mon, Method::Gmon] {
-                add(c, m, format!("{m} groups={}", c.mon_groups));
+                add(c, m, format!("{m} groups={}", c.mon_groups))?;
             }
         }
         for c in &peers.rwmc {
-            add(c, Method::Rwmc, format!("rwmc kappa={}", c.rwmc_kappa));
+            add(c, Method::Rwmc, format!("rwmc kappa={}", c.rwmc_kappa))?;
         }
         for c in &peers.clamp {
-            add(c, Method::Clamp, format!("clamp C={}", c.clamp));
+            add(c, Method::Clamp, format!("clamp C={}", c.clamp))?;
         }
-        (baselines, valid)
-    });
+        Ok::<_, anyhow::Error>((baselines, valid))
+    })?;
 
     let configs = grid(o);
     progress.set_length(configs.len() as u64);

@@ -1,0 +1,221 @@
+//! OIDN as a method (`--features oidn`): `oidn` and `METHOD+oidn` equal
+//! what the reference library gives through pyoidn for the same input,
+//! to 1e-5 relative, on every run; the default build refuses OIDN in one
+//! line. The OIDN build goes to target/oidn (its own feature set), with
+//! OIDN_DIR from tools/oidn/.venv (`bash tools/oidn/setup.sh`); skipped
+//! loudly without it, unless `PATHDENSITY_REQUIRE_OIDN` is set (CI sets it).
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use pathdensity::io::exr;
+
+const ROOT: &str = env!("CARGO_MANIFEST_DIR");
+
+/// The venv's python and OIDN_DIR, if tools/oidn/setup.sh has run.
+fn oidn() -> Option<(PathBuf, String)> {
+    let py = Path::new(ROOT).join("tools/oidn/.venv/bin/python");
+    let found = Command::new(&py)
+        .args([
+            "-c",
+            "import os, pyoidn; print(os.path.join(os.path.dirname(pyoidn.__file__), 'oidn'))",
+        ])
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    match found {
+        Some(dir) => Some((py, dir)),
+        None => {
+            let why = "OIDN is not set up (bash tools/oidn/setup.sh)";
+            if std::env::var_os("PATHDENSITY_REQUIRE_OIDN").is_some() {
+                panic!("{why}, and PATHDENSITY_REQUIRE_OIDN is set");
+            }
+            common::skipped(why);
+            None
+        }
+    }
+}
+
+fn cargo(oidn_dir: &str, args: &[&str]) {
+    let target = Path::new(ROOT).join("target/oidn");
+    let st = Command::new(env!("CARGO"))
+        .args(args)
+        .args(["--release", "--features", "oidn", "--target-dir"])
+        .arg(&target)
+        .env("OIDN_DIR", oidn_dir)
+        // The top package's binaries carry an rpath (build.rs); core's own
+        // test binary does not.
+        .env("LD_LIBRARY_PATH", Path::new(oidn_dir).join("lib"))
+        .current_dir(ROOT)
+        .status()
+        .unwrap();
+    assert!(st.success(), "cargo {args:?} --features oidn failed");
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// The reference library's RT filter (HDR) on `input`, through pyoidn.
+fn pyoidn(py: &Path, input: &Path, dir: &Path) -> Vec<[f64; 3]> {
+    let (w, h, px) = exr::read_rgb(input).unwrap();
+    let raw_in = dir.join("in.f32");
+    let raw_out = dir.join("out.f32");
+    let bytes: Vec<u8> = px
+        .iter()
+        .flatten()
+        .flat_map(|&v| (v as f32).to_le_bytes())
+        .collect();
+    std::fs::write(&raw_in, bytes).unwrap();
+    let script = format!(
+        "import numpy as np, pyoidn\n\
+         a = np.fromfile({:?}, '<f4').reshape({h}, {w}, 3)\n\
+         pyoidn.denoise(a, hdr=True).astype('<f4').tofile({:?})\n",
+        s(&raw_in),
+        s(&raw_out)
+    );
+    let st = Command::new(py).args(["-c", &script]).status().unwrap();
+    assert!(st.success());
+    std::fs::read(&raw_out)
+        .unwrap()
+        .chunks_exact(12)
+        .map(|c| {
+            std::array::from_fn(|k| {
+                f32::from_le_bytes(c[4 * k..4 * k + 4].try_into().unwrap()) as f64
+            })
+        })
+        .collect()
+}
+
+#[test]
+fn oidn_images_equal_the_reference_librarys_and_runs_repeat() {
+    let Some((py, dir)) = oidn() else { return };
+    cargo(&dir, &["build", "--bin", "pathdensity"]);
+    cargo(
+        &dir,
+        &[
+            "test",
+            "-p",
+            "pathdensity-core",
+            "--lib",
+            "imagespace::oidn",
+        ],
+    );
+    let bin = Path::new(ROOT).join("target/oidn/release/pathdensity");
+    let tmp = tempfile::tempdir().unwrap();
+    let dump = tmp.path().join("s.pds");
+    let st = Command::new(env!("CARGO_BIN_EXE_pathdensity"))
+        .args([
+            "synth",
+            "-o",
+            s(&dump),
+            "--width",
+            "48",
+            "--height",
+            "40",
+            "--spp",
+            "16",
+            "--fireflies",
+            "0.01",
+        ])
+        .args(["--light", "10,12,3,50"])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let run = |out: &Path, threads: &str| {
+        let o = Command::new(&bin)
+            .args([
+                "filter",
+                s(&dump),
+                "-o",
+                s(out),
+                "--methods",
+                "clamp,oidn",
+                "--denoise",
+                "oidn",
+                "--no-html",
+            ])
+            .args(["--threads", threads])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
+    let table = run(&a, "2");
+    for name in ["oidn", "filtered+oidn", "clamp+oidn"] {
+        assert!(table.contains(name), "{name} is missing from\n{table}");
+    }
+    assert!(
+        !a.join("mean+oidn.exr").exists(),
+        "mean+oidn duplicates oidn"
+    );
+    for (input, output) in [
+        ("mean", "oidn"),
+        ("filtered", "filtered+oidn"),
+        ("clamp", "clamp+oidn"),
+    ] {
+        let want = pyoidn(&py, &a.join(format!("{input}.exr")), tmp.path());
+        let (_, _, got) = exr::read_rgb(&a.join(format!("{output}.exr"))).unwrap();
+        let worst = got
+            .iter()
+            .flatten()
+            .zip(want.iter().flatten())
+            .map(|(g, w)| (g - w).abs() / w.abs().max(1e-3))
+            .fold(0.0, f64::max);
+        assert!(
+            worst <= 1e-5,
+            "{output}: relative difference {worst:e} from pyoidn"
+        );
+        assert!(got.iter().flatten().any(|&v| v > 0.0), "{output} is black");
+    }
+    run(&b, "1");
+    for name in ["oidn", "filtered+oidn", "clamp+oidn"] {
+        let file = format!("{name}.exr");
+        assert!(
+            std::fs::read(a.join(&file)).unwrap() == std::fs::read(b.join(&file)).unwrap(),
+            "{file} differs between runs"
+        );
+    }
+}
+
+#[test]
+fn the_default_build_refuses_oidn_in_one_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dump = tmp.path().join("s.pds");
+    let bin = env!("CARGO_BIN_EXE_pathdensity");
+    assert!(
+        Command::new(bin)
+            .args([
+                "synth",
+                "-o",
+                s(&dump),
+                "--width",
+                "8",
+                "--height",
+                "8",
+                "--spp",
+                "4"
+            ])
+            .status()
+            .unwrap()
+            .success()
+    );
+    for args in [["--methods", "oidn"], ["--denoise", "oidn"]] {
+        let o = Command::new(bin)
+            .args(["filter", s(&dump), "-o", s(&tmp.path().join("o"))])
+            .args(args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(
+            err.contains("--features oidn") && err.contains(args[0]),
+            "{err}"
+        );
+    }
+}
