@@ -6,7 +6,9 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use pathdensity::commands::{filter, info, regress, sweep};
-use pathdensity::config::{ConfigError, Denoise, FilterConfig, Method, Recon, White};
+use pathdensity::config::{
+    ColorSpace, ConfigError, Denoise, FilterConfig, Method, Recon, White,
+};
 use pathdensity::density::IndexKind;
 use pathdensity::dump::Order;
 use pathdensity::sweep::SweepOptions;
@@ -94,6 +96,10 @@ struct ConfigArgs {
     /// Image Denoise (METHOD+oidn; needs a build with `--features oidn`).
     #[arg(long, default_value_t = D.denoise)]
     denoise: Denoise,
+    /// Colour coordinates of the joint space: cielab (the paper's), loglab
+    /// or logluv (logarithmic above the white; docs/filter.md §1).
+    #[arg(long, default_value_t = D.color_space)]
+    color_space: ColorSpace,
 }
 
 const D: FilterConfig = FilterConfig::DEFAULT;
@@ -122,6 +128,7 @@ impl From<ConfigArgs> for FilterConfig {
             clamp: a.clamp,
             exposure: a.exposure,
             denoise: a.denoise,
+            color_space: a.color_space,
         }
     }
 }
@@ -195,6 +202,9 @@ enum Command {
         /// White luminances, numbers or `auto`, comma-separated.
         #[arg(long, value_delimiter = ',', default_value = "1")]
         white: Vec<White>,
+        /// Colour spaces of the joint space, comma-separated.
+        #[arg(long, value_delimiter = ',', default_values_t = [D.color_space])]
+        color_space: Vec<ColorSpace>,
         #[arg(long, default_value_t = D.sigma_time)]
         sigma_time: f64,
         #[arg(long, default_value_t = D.recon)]
@@ -403,6 +413,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             sigma_color,
             sigma_image,
             white,
+            color_space,
             sigma_time,
             recon,
             exposure,
@@ -418,6 +429,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             o.sigma_colors = sigma_color;
             o.sigma_images = sigma_image;
             o.whites = white;
+            o.color_spaces = color_space;
             o.config.sigma_time = sigma_time;
             o.config.recon = recon;
             o.config.exposure = exposure;

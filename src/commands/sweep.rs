@@ -51,15 +51,16 @@ pub fn sweep_with_progress(o: &SweepOptions, progress: &dyn Progress) -> Result<
 pub fn table(s: &Sweep) -> String {
     let front = s.pareto();
     let mut t = format!(
-        "{:>5} {:>8} {:>8} {:>10} {:>9} {:>9} {:>9} {:>11} {:>8}\n",
-        "k", "σ_color", "σ_image", "white", "seconds", "stored", "accepted", "RMS", "RMS disp"
+        "{:>6} {:>5} {:>8} {:>8} {:>10} {:>9} {:>9} {:>9} {:>11} {:>8}\n",
+        "space", "k", "σ_color", "σ_image", "white", "seconds", "stored", "accepted", "RMS", "RMS disp"
     );
     for (i, r) in s.rows.iter().enumerate() {
         let mark = if front.contains(&i) { "*" } else { " " };
         match (&r.metrics, &r.failure) {
             (Some(m), _) => {
                 t += &format!(
-                    "{:>5} {:>8} {:>8} {:>10.4} {:>9.3} {:>9} {:>8.2}% {:>10.6}{mark} {:>8.5}\n",
+                    "{:>6} {:>5} {:>8} {:>8} {:>10.4} {:>9.3} {:>9} {:>8.2}% {:>10.6}{mark} {:>8.5}\n",
+                    r.color_space.name(),
                     r.k,
                     r.sigma_color,
                     r.sigma_image,
@@ -73,7 +74,8 @@ pub fn table(s: &Sweep) -> String {
             }
             (None, f) => {
                 t += &format!(
-                    "{:>5} {:>8} {:>8} {:>10.4}   failed: {}\n",
+                    "{:>6} {:>5} {:>8} {:>8} {:>10.4}   failed: {}\n",
+                    r.color_space.name(),
                     r.k,
                     r.sigma_color,
                     r.sigma_image,
@@ -85,7 +87,7 @@ pub fn table(s: &Sweep) -> String {
     }
     for b in &s.baselines {
         t += &format!(
-            "{:>44} {:>9.3} {:>30.6}  {:>8.5}\n",
+            "{:>51} {:>9.3} {:>30.6}  {:>8.5}\n",
             b.method, b.seconds, b.metrics.rms, b.metrics.rms_display
         );
     }

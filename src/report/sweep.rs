@@ -5,13 +5,22 @@ use plotters::prelude::*;
 
 use super::plots::{to_png, to_svg};
 use crate::metrics::Metrics;
-use crate::sweep::Sweep;
+use crate::sweep::{Row, Sweep};
+
+/// A configuration's two images and their metrics.
+fn images(r: &Row) -> [(&'static str, Option<&Metrics>); 2] {
+    [
+        ("filtered", r.metrics.as_ref()),
+        ("filtered_energy", r.energy_metrics.as_ref()),
+    ]
+}
 
 /// One line of `sweep.csv`: a configuration (method `filtered`) or a
 /// baseline, whose filter fields are empty.
 #[derive(serde::Serialize)]
 struct CsvRow<'a> {
     method: &'a str,
+    color_space: Option<&'a str>,
     k: Option<usize>,
     sigma_color: Option<f64>,
     sigma_image: Option<f64>,
@@ -38,12 +47,14 @@ impl CsvRow<'_> {
     }
 }
 
-/// `sweep.csv`: one line per configuration, then one per baseline.
+/// `sweep.csv`: two lines per configuration (its `filtered` and
+/// `filtered_energy` images), then one per baseline.
 pub fn csv(s: &Sweep) -> String {
     let mut w = csv::Writer::from_writer(Vec::new());
-    let rows = s.rows.iter().map(|r| {
+    let rows = s.rows.iter().flat_map(|r| images(r).map(|(method, m)| (r, method, m))).map(|(r, method, m)| {
         CsvRow {
-            method: "filtered",
+            method,
+            color_space: Some(r.color_space.name()),
             k: Some(r.k),
             sigma_color: Some(r.sigma_color),
             sigma_image: Some(r.sigma_image),
@@ -62,11 +73,12 @@ pub fn csv(s: &Sweep) -> String {
             rel_mse: None,
             energy_ratio: None,
         }
-        .metrics(r.metrics.as_ref())
+        .metrics(m)
     });
     let baselines = s.baselines.iter().map(|b| {
         CsvRow {
             method: &b.method,
+            color_space: None,
             k: None,
             sigma_color: None,
             sigma_image: None,

@@ -21,6 +21,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::density::IndexKind;
 use crate::imagespace::bilateral::BilateralParams;
+pub use crate::joint::ColorSpace;
 use crate::joint::JointSpace;
 pub use crate::joint::white::White;
 pub use crate::pipeline::methods::{Method, MethodSet};
@@ -144,6 +145,8 @@ pub struct FilterConfig {
     pub exposure: f64,
     /// Also denoise every selected method's image (`METHOD+oidn`).
     pub denoise: Denoise,
+    /// The joint space's colour coordinates.
+    pub color_space: ColorSpace,
 }
 
 impl FilterConfig {
@@ -171,6 +174,7 @@ impl FilterConfig {
         clamp: 10.0,
         exposure: 1.0,
         denoise: Denoise::None,
+        color_space: ColorSpace::Cielab,
     };
 
     /// Checks every field; the error names the first bad one.
@@ -256,6 +260,7 @@ impl FilterConfig {
             sigma_color: self.sigma_color,
             sigma_time: self.sigma_time,
             white,
+            color: self.color_space,
         }
     }
 

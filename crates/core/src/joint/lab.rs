@@ -2,7 +2,7 @@
 //! added left to right, no fused multiply-add).
 
 /// The D65 white point relative to Y = 1.
-const WHITE_D65: [f64; 3] = [0.95047, 1.0, 1.08883];
+pub(crate) const WHITE_D65: [f64; 3] = [0.95047, 1.0, 1.08883];
 
 /// CIE's δ = 6/29: the knee between the cube root and the linear branch.
 const DELTA: f64 = 6.0 / 29.0;
@@ -26,7 +26,7 @@ pub fn luminance(rgb: [f64; 3]) -> f64 {
 /// CIE's f(u): cube root above δ³, the linear segment below. The linear
 /// branch also takes negative u, so the map is finite for every finite input.
 #[inline]
-fn f(u: f64) -> f64 {
+pub(crate) fn f(u: f64) -> f64 {
     if u > DELTA * DELTA * DELTA {
         u.cbrt()
     } else {

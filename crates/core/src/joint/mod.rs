@@ -1,13 +1,66 @@
 //! The joint image–colour(–time) space of docs/filter.md §1, where the density filter
 //! measures distances.
 
+pub mod hdr;
 pub mod lab;
 pub mod white;
 
 use crate::dump::Record;
 
+/// The colour coordinates of the joint space (docs/filter.md §1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ColorSpace {
+    /// CIELAB (F2), the paper's.
+    #[default]
+    Cielab,
+    /// CIELAB continued logarithmically above the white (F2a).
+    Loglab,
+    /// Log lightness with CIELUV chroma capped at the white (F2b).
+    Logluv,
+}
+
+impl ColorSpace {
+    pub const ALL: [ColorSpace; 3] = [ColorSpace::Cielab, ColorSpace::Loglab, ColorSpace::Logluv];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            ColorSpace::Cielab => "cielab",
+            ColorSpace::Loglab => "loglab",
+            ColorSpace::Logluv => "logluv",
+        }
+    }
+
+    /// The three colour coordinates of linear RGB for white luminance `white`.
+    #[inline]
+    pub fn coords(self, rgb: [f64; 3], white: f64) -> [f64; 3] {
+        match self {
+            ColorSpace::Cielab => lab::rgb_to_lab(rgb, white),
+            ColorSpace::Loglab => hdr::rgb_to_loglab(rgb, white),
+            ColorSpace::Logluv => hdr::rgb_to_logluv(rgb, white),
+        }
+    }
+}
+
+impl std::str::FromStr for ColorSpace {
+    type Err = String;
+    fn from_str(s: &str) -> Result<ColorSpace, String> {
+        ColorSpace::ALL
+            .into_iter()
+            .find(|c| c.name() == s)
+            .ok_or_else(|| format!("unknown colour space {s:?} (cielab, loglab or logluv)"))
+    }
+}
+
+impl std::fmt::Display for ColorSpace {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// Scales of the joint space. A point is
-/// `(x/σ_image, y/σ_image, [t/σ_time], L*/σ_color, a*/σ_color, b*/σ_color)`.
+/// `(x/σ_image, y/σ_image, [t/σ_time], c₁/σ_color, c₂/σ_color, c₃/σ_color)`
+/// with c the colour coordinates of `color` (L*, a*, b* for CIELAB).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct JointSpace {
     pub sigma_image: f64,
@@ -15,6 +68,7 @@ pub struct JointSpace {
     pub sigma_time: f64,
     /// Luminance of white, Y_w: radiance `white` maps to L* ≈ 100.
     pub white: f64,
+    pub color: ColorSpace,
 }
 
 impl Default for JointSpace {
@@ -37,7 +91,7 @@ impl JointSpace {
     #[inline]
     pub fn point<const D: usize>(&self, r: &Record) -> [f32; D] {
         debug_assert!(D == 5 || D == 6);
-        let lab = lab::rgb_to_lab([r.r as f64, r.g as f64, r.b as f64], self.white);
+        let lab = self.color.coords([r.r as f64, r.g as f64, r.b as f64], self.white);
         let mut p = [0f32; D];
         p[0] = coord(r.x as f64 / self.sigma_image);
         p[1] = coord(r.y as f64 / self.sigma_image);

@@ -10,14 +10,14 @@ use std::time::Instant;
 
 use anyhow::{Result, bail};
 
-use crate::config::{FilterConfig, Method, White};
+use crate::config::{ColorSpace, FilterConfig, Method, White};
 use crate::dump::{DumpReader, Header, Record};
 use crate::io::exr;
 use crate::metrics::{self, Metrics};
 use crate::pipeline::estimate::{Estimators, Shared};
 use crate::pipeline::{self, PipelineError, thread_pool};
 use crate::progress::Progress;
-use crate::recon::Image;
+use crate::recon::{Image, energy};
 
 pub use equal_time::{EqualTimeRow, equal_time, equal_time_csv};
 
@@ -33,6 +33,7 @@ pub struct SweepOptions {
     pub sigma_colors: Vec<f64>,
     pub sigma_images: Vec<f64>,
     pub whites: Vec<White>,
+    pub color_spaces: Vec<ColorSpace>,
     /// Worker threads; 0 means one per core.
     pub threads: usize,
     /// Group counts of the median-of-means baselines (mon, gmon).
@@ -67,6 +68,7 @@ impl SweepOptions {
             sigma_colors: vec![25.0, 50.0, 100.0, 200.0, 400.0],
             sigma_images: vec![1.5, 3.0, 6.0],
             whites: vec![d.white],
+            color_spaces: vec![d.color_space],
             threads: 0,
             mon_groups: vec![d.mon_groups],
             rwmc_kappas: vec![d.rwmc_kappa],
@@ -108,6 +110,7 @@ impl SweepOptions {
 /// One configuration's outcome.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Row {
+    pub color_space: ColorSpace,
     pub k: usize,
     pub sigma_color: f64,
     pub sigma_image: f64,
@@ -122,7 +125,10 @@ pub struct Row {
     pub stored: u64,
     pub accepted_fraction: f64,
     pub fallback_pixels: u64,
+    /// The filtered image's.
     pub metrics: Option<Metrics>,
+    /// The energy-preserving variant's (`filtered_energy`).
+    pub energy_metrics: Option<Metrics>,
 }
 
 /// A baseline measured once.
@@ -147,17 +153,20 @@ pub struct Sweep {
 /// innermost).
 fn grid(o: &SweepOptions) -> Vec<FilterConfig> {
     let mut v = Vec::new();
-    for &white in &o.whites {
-        for &sigma_image in &o.sigma_images {
-            for &sigma_color in &o.sigma_colors {
-                for &k in &o.ks {
-                    v.push(FilterConfig {
-                        k,
-                        sigma_color,
-                        sigma_image,
-                        white,
-                        ..o.config
-                    });
+    for &color_space in &o.color_spaces {
+        for &white in &o.whites {
+            for &sigma_image in &o.sigma_images {
+                for &sigma_color in &o.sigma_colors {
+                    for &k in &o.ks {
+                        v.push(FilterConfig {
+                            k,
+                            sigma_color,
+                            sigma_image,
+                            white,
+                            color_space,
+                            ..o.config
+                        });
+                    }
                 }
             }
         }
@@ -170,6 +179,7 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
         || o.sigma_colors.is_empty()
         || o.sigma_images.is_empty()
         || o.whites.is_empty()
+        || o.color_spaces.is_empty()
     {
         bail!("every swept list needs at least one value");
     }
@@ -325,8 +335,11 @@ fn configuration(
     row.accepted_fraction =
         (c.accepted_streaming + c.accepted_final) as f64 / c.valid.max(1) as f64;
     row.fallback_pixels = core.reconstruction.fallback_pixels;
-    row.metrics =
-        Some(metrics::compare(&core.reconstruction.filtered, reference, config.exposure).pooled);
+    let rec = &core.reconstruction;
+    row.metrics = Some(metrics::compare(&rec.filtered, reference, config.exposure).pooled);
+    let energy_aware =
+        energy::energy_aware(&rec.filtered, &core.removed, &rec.occupancy, config.energy_sigma);
+    row.energy_metrics = Some(metrics::compare(&energy_aware, reference, config.exposure).pooled);
     row
 }
 
@@ -334,6 +347,7 @@ impl Row {
     /// The row of a configuration before it runs.
     fn unrun(config: &FilterConfig, white_value: f64) -> Row {
         Row {
+            color_space: config.color_space,
             k: config.k,
             sigma_color: config.sigma_color,
             sigma_image: config.sigma_image,
@@ -345,6 +359,7 @@ impl Row {
             accepted_fraction: 0.0,
             fallback_pixels: 0,
             metrics: None,
+            energy_metrics: None,
         }
     }
 }
