@@ -7,7 +7,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use pathdensity::commands::{filter, info, regress, sweep};
 use pathdensity::config::{
-    ColorSpace, ConfigError, Denoise, FilterConfig, Method, Recon, White,
+    ColorSpace, ConfigError, Denoise, FilterConfig, FinalPass, Method, Recon, White,
 };
 use pathdensity::density::IndexKind;
 use pathdensity::dump::Order;
@@ -100,6 +100,10 @@ struct ConfigArgs {
     /// or logluv (logarithmic above the white; docs/filter.md §1).
     #[arg(long, default_value_t = D.color_space)]
     color_space: ColorSpace,
+    /// What the final pass judges a stored sample against: `stored` (the
+    /// paper's) or `all` valid samples (docs/filter.md §2, F6a).
+    #[arg(long, default_value_t = D.final_pass)]
+    final_pass: FinalPass,
 }
 
 const D: FilterConfig = FilterConfig::DEFAULT;
@@ -129,6 +133,7 @@ impl From<ConfigArgs> for FilterConfig {
             exposure: a.exposure,
             denoise: a.denoise,
             color_space: a.color_space,
+            final_pass: a.final_pass,
         }
     }
 }
@@ -205,6 +210,9 @@ enum Command {
         /// Colour spaces of the joint space, comma-separated.
         #[arg(long, value_delimiter = ',', default_values_t = [D.color_space])]
         color_space: Vec<ColorSpace>,
+        /// Final passes (stored, all), comma-separated.
+        #[arg(long, value_delimiter = ',', default_values_t = [D.final_pass])]
+        final_pass: Vec<FinalPass>,
         #[arg(long, default_value_t = D.sigma_time)]
         sigma_time: f64,
         #[arg(long, default_value_t = D.recon)]
@@ -414,6 +422,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             sigma_image,
             white,
             color_space,
+            final_pass,
             sigma_time,
             recon,
             exposure,
@@ -430,6 +439,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             o.sigma_images = sigma_image;
             o.whites = white;
             o.color_spaces = color_space;
+            o.final_passes = final_pass;
             o.config.sigma_time = sigma_time;
             o.config.recon = recon;
             o.config.exposure = exposure;

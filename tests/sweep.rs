@@ -115,8 +115,10 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
     assert_eq!(by("clamp C=10"), fr.metrics["clamp"].pooled);
     assert_ne!(by("clamp C=1"), by("clamp C=10"));
     let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
-    assert_eq!(csv.lines().count(), 1 + 24 + 12);
-    assert_eq!(csv.matches("failed:").count(), 16);
+    // Two lines per configuration (filtered, filtered_energy), one per baseline.
+    assert_eq!(csv.lines().count(), 1 + 2 * 24 + 12);
+    assert_eq!(csv.matches("failed:").count(), 2 * 16);
+    assert_eq!(csv.matches("\nfiltered_energy,stored,cielab,").count(), 24);
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("sweep.json")).unwrap()).unwrap();
     assert_eq!(json["rows"].as_array().unwrap().len(), 24);

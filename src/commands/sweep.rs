@@ -52,7 +52,16 @@ pub fn table(s: &Sweep) -> String {
     let front = s.pareto();
     let mut t = format!(
         "{:>6} {:>5} {:>8} {:>8} {:>10} {:>9} {:>9} {:>9} {:>11} {:>8}\n",
-        "space", "k", "σ_color", "σ_image", "white", "seconds", "stored", "accepted", "RMS", "RMS disp"
+        "space",
+        "k",
+        "σ_color",
+        "σ_image",
+        "white",
+        "seconds",
+        "stored",
+        "accepted",
+        "RMS",
+        "RMS disp"
     );
     for (i, r) in s.rows.iter().enumerate() {
         let mark = if front.contains(&i) { "*" } else { " " };

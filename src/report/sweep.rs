@@ -20,6 +20,7 @@ fn images(r: &Row) -> [(&'static str, Option<&Metrics>); 2] {
 #[derive(serde::Serialize)]
 struct CsvRow<'a> {
     method: &'a str,
+    final_pass: Option<&'a str>,
     color_space: Option<&'a str>,
     k: Option<usize>,
     sigma_color: Option<f64>,
@@ -51,33 +52,39 @@ impl CsvRow<'_> {
 /// `filtered_energy` images), then one per baseline.
 pub fn csv(s: &Sweep) -> String {
     let mut w = csv::Writer::from_writer(Vec::new());
-    let rows = s.rows.iter().flat_map(|r| images(r).map(|(method, m)| (r, method, m))).map(|(r, method, m)| {
-        CsvRow {
-            method,
-            color_space: Some(r.color_space.name()),
-            k: Some(r.k),
-            sigma_color: Some(r.sigma_color),
-            sigma_image: Some(r.sigma_image),
-            white: Some(&r.white),
-            white_value: Some(r.white_value),
-            status: match &r.failure {
-                None => "ok".into(),
-                Some(f) => format!("failed: {f}"),
-            },
-            seconds: r.seconds,
-            stored: Some(r.stored),
-            accepted_fraction: Some(r.accepted_fraction),
-            fallback_pixels: Some(r.fallback_pixels),
-            rms: None,
-            rms_display: None,
-            rel_mse: None,
-            energy_ratio: None,
-        }
-        .metrics(m)
-    });
+    let rows = s
+        .rows
+        .iter()
+        .flat_map(|r| images(r).map(|(method, m)| (r, method, m)))
+        .map(|(r, method, m)| {
+            CsvRow {
+                method,
+                final_pass: Some(r.final_pass.name()),
+                color_space: Some(r.color_space.name()),
+                k: Some(r.k),
+                sigma_color: Some(r.sigma_color),
+                sigma_image: Some(r.sigma_image),
+                white: Some(&r.white),
+                white_value: Some(r.white_value),
+                status: match &r.failure {
+                    None => "ok".into(),
+                    Some(f) => format!("failed: {f}"),
+                },
+                seconds: r.seconds,
+                stored: Some(r.stored),
+                accepted_fraction: Some(r.accepted_fraction),
+                fallback_pixels: Some(r.fallback_pixels),
+                rms: None,
+                rms_display: None,
+                rel_mse: None,
+                energy_ratio: None,
+            }
+            .metrics(m)
+        });
     let baselines = s.baselines.iter().map(|b| {
         CsvRow {
             method: &b.method,
+            final_pass: None,
             color_space: None,
             k: None,
             sigma_color: None,

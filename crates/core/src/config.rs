@@ -19,6 +19,7 @@
 
 use serde::{Deserialize, Serialize};
 
+pub use crate::density::FinalPass;
 use crate::density::IndexKind;
 use crate::imagespace::bilateral::BilateralParams;
 pub use crate::joint::ColorSpace;
@@ -147,6 +148,8 @@ pub struct FilterConfig {
     pub denoise: Denoise,
     /// The joint space's colour coordinates.
     pub color_space: ColorSpace,
+    /// What the final pass judges a stored sample against.
+    pub final_pass: FinalPass,
 }
 
 impl FilterConfig {
@@ -175,6 +178,7 @@ impl FilterConfig {
         exposure: 1.0,
         denoise: Denoise::None,
         color_space: ColorSpace::Cielab,
+        final_pass: FinalPass::Stored,
     };
 
     /// Checks every field; the error names the first bad one.

@@ -11,6 +11,7 @@
 
 mod batch;
 mod deferral;
+pub mod evidence;
 mod in_order;
 pub mod index;
 mod kbest;
@@ -42,6 +43,44 @@ impl Decision {
     /// True for samples splatted into the filtered image.
     pub fn accepted(byte: u8) -> bool {
         byte == Decision::AcceptedStreaming as u8 || byte == Decision::AcceptedFinal as u8
+    }
+}
+
+/// Which samples the final pass judges a stored sample against
+/// (docs/filter.md §2).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FinalPass {
+    /// The other stored samples, T \ {s}: the paper's step 3.
+    #[default]
+    Stored,
+    /// Every valid sample but s (F6a, [`evidence`]).
+    All,
+}
+
+impl FinalPass {
+    pub fn name(self) -> &'static str {
+        match self {
+            FinalPass::Stored => "stored",
+            FinalPass::All => "all",
+        }
+    }
+}
+
+impl std::str::FromStr for FinalPass {
+    type Err = String;
+    fn from_str(s: &str) -> Result<FinalPass, String> {
+        match s {
+            "stored" => Ok(FinalPass::Stored),
+            "all" => Ok(FinalPass::All),
+            _ => Err(format!("unknown final pass {s:?} (stored or all)")),
+        }
+    }
+}
+
+impl std::fmt::Display for FinalPass {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str(self.name())
     }
 }
 

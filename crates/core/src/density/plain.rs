@@ -7,16 +7,27 @@
 use std::time::Instant;
 
 use super::sigma::sigma;
-use super::{Decision, FilterCounts, FilterResult};
+use super::{Decision, FilterCounts, FilterResult, FinalPass};
 use crate::dump::{Header, Record, Validity};
 use crate::joint::{JointSpace, dist2};
 
 /// Replays `records` with k neighbours in `space`; every σ is kept.
 pub fn replay(records: &[Record], header: &Header, space: &JointSpace, k: usize) -> FilterResult {
+    replay_with(records, header, space, k, FinalPass::Stored)
+}
+
+/// [`replay`] with the final pass of `final_pass`.
+pub fn replay_with(
+    records: &[Record],
+    header: &Header,
+    space: &JointSpace,
+    k: usize,
+    final_pass: FinalPass,
+) -> FilterResult {
     if header.animated() {
-        replay_in::<6>(records, header, space, k)
+        replay_in::<6>(records, header, space, k, final_pass)
     } else {
-        replay_in::<5>(records, header, space, k)
+        replay_in::<5>(records, header, space, k, final_pass)
     }
 }
 
@@ -25,6 +36,7 @@ fn replay_in<const D: usize>(
     header: &Header,
     space: &JointSpace,
     k: usize,
+    final_pass: FinalPass,
 ) -> FilterResult {
     let n = records.len();
     let mut decisions = vec![Decision::Invalid as u8; n];
@@ -36,6 +48,9 @@ fn replay_in<const D: usize>(
     // T: the stored samples' joint points, and which record each is.
     let mut stored: Vec<[f32; D]> = Vec::new();
     let mut stored_at: Vec<usize> = Vec::new();
+    // Every valid sample's point (F6a's final pass needs them all).
+    let mut all: Vec<[f32; D]> = Vec::new();
+    let mut all_id: Vec<usize> = Vec::new();
 
     // Step 1, streaming: a sample whose k nearest stored samples are on
     // average closer than 1 is accepted; any other joins T.
@@ -48,6 +63,10 @@ fn replay_in<const D: usize>(
         }
         counts.valid += 1;
         let p = space.point::<D>(r);
+        if final_pass == FinalPass::All {
+            all_id.push(all.len());
+            all.push(p);
+        }
         sigmas[i] = sigma_against(&p, &stored, None, k);
         if sigmas[i] < 1.0 {
             decisions[i] = Decision::AcceptedStreaming as u8;
@@ -61,10 +80,29 @@ fn replay_in<const D: usize>(
     let streaming_seconds = t0.elapsed().as_secs_f64();
 
     // Step 2, the final pass: each stored sample against all of T but
-    // itself, with T fixed.
+    // itself, with T fixed (F6a: against every valid sample but itself).
     let t1 = Instant::now();
+    let valid_before: Vec<usize> = if final_pass == FinalPass::All {
+        // The position of each stored sample among the valid ones.
+        let mut pos = Vec::with_capacity(stored_at.len());
+        let mut v = 0;
+        for (i, r) in records.iter().enumerate() {
+            if r.validity(header) == Validity::Valid {
+                if stored_at.binary_search(&i).is_ok() {
+                    pos.push(all_id[v]);
+                }
+                v += 1;
+            }
+        }
+        pos
+    } else {
+        Vec::new()
+    };
     for (id, &i) in stored_at.iter().enumerate() {
-        sigmas[i] = sigma_against(&stored[id], &stored, Some(id), k);
+        sigmas[i] = match final_pass {
+            FinalPass::Stored => sigma_against(&stored[id], &stored, Some(id), k),
+            FinalPass::All => sigma_against(&stored[id], &all, Some(valid_before[id]), k),
+        };
         if sigmas[i] < 1.0 {
             decisions[i] = Decision::AcceptedFinal as u8;
             counts.accepted_final += 1;

@@ -91,7 +91,9 @@ impl JointSpace {
     #[inline]
     pub fn point<const D: usize>(&self, r: &Record) -> [f32; D] {
         debug_assert!(D == 5 || D == 6);
-        let lab = self.color.coords([r.r as f64, r.g as f64, r.b as f64], self.white);
+        let lab = self
+            .color
+            .coords([r.r as f64, r.g as f64, r.b as f64], self.white);
         let mut p = [0f32; D];
         p[0] = coord(r.x as f64 / self.sigma_image);
         p[1] = coord(r.y as f64 / self.sigma_image);

@@ -10,7 +10,7 @@ pub mod methods;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use crate::config::{ConfigError, Denoise, FilterConfig, White};
+use crate::config::{ConfigError, Denoise, FilterConfig, FinalPass, White};
 use crate::density::{self, Decision, FilterCounts, FilterResult, ReplayOptions};
 use crate::dump::{Header, Record, Validity};
 use crate::joint::white::auto_white;
@@ -263,15 +263,20 @@ pub fn replay(
         exact_sigma,
         ..ReplayOptions::default()
     };
-    density::run(
+    let space = config.space(white);
+    let mut result = density::run(
         records,
         header,
-        &config.space(white),
+        &space,
         config.k,
         config.index,
         &options,
         progress,
-    )
+    );
+    if config.final_pass == FinalPass::All {
+        density::evidence::final_pass_against_all(records, header, &space, config.k, &mut result);
+    }
+    result
 }
 
 /// The mean of every valid sample and the filtered image of those

@@ -10,7 +10,7 @@ use std::time::Instant;
 
 use anyhow::{Result, bail};
 
-use crate::config::{ColorSpace, FilterConfig, Method, White};
+use crate::config::{ColorSpace, FilterConfig, FinalPass, Method, White};
 use crate::dump::{DumpReader, Header, Record};
 use crate::io::exr;
 use crate::metrics::{self, Metrics};
@@ -34,6 +34,7 @@ pub struct SweepOptions {
     pub sigma_images: Vec<f64>,
     pub whites: Vec<White>,
     pub color_spaces: Vec<ColorSpace>,
+    pub final_passes: Vec<FinalPass>,
     /// Worker threads; 0 means one per core.
     pub threads: usize,
     /// Group counts of the median-of-means baselines (mon, gmon).
@@ -69,6 +70,7 @@ impl SweepOptions {
             sigma_images: vec![1.5, 3.0, 6.0],
             whites: vec![d.white],
             color_spaces: vec![d.color_space],
+            final_passes: vec![d.final_pass],
             threads: 0,
             mon_groups: vec![d.mon_groups],
             rwmc_kappas: vec![d.rwmc_kappa],
@@ -110,6 +112,7 @@ impl SweepOptions {
 /// One configuration's outcome.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Row {
+    pub final_pass: FinalPass,
     pub color_space: ColorSpace,
     pub k: usize,
     pub sigma_color: f64,
@@ -153,7 +156,11 @@ pub struct Sweep {
 /// innermost).
 fn grid(o: &SweepOptions) -> Vec<FilterConfig> {
     let mut v = Vec::new();
-    for &color_space in &o.color_spaces {
+    for (&final_pass, &color_space) in o
+        .final_passes
+        .iter()
+        .flat_map(|f| o.color_spaces.iter().map(move |c| (f, c)))
+    {
         for &white in &o.whites {
             for &sigma_image in &o.sigma_images {
                 for &sigma_color in &o.sigma_colors {
@@ -164,6 +171,7 @@ fn grid(o: &SweepOptions) -> Vec<FilterConfig> {
                             sigma_image,
                             white,
                             color_space,
+                            final_pass,
                             ..o.config
                         });
                     }
@@ -180,6 +188,7 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
         || o.sigma_images.is_empty()
         || o.whites.is_empty()
         || o.color_spaces.is_empty()
+        || o.final_passes.is_empty()
     {
         bail!("every swept list needs at least one value");
     }
@@ -337,8 +346,12 @@ fn configuration(
     row.fallback_pixels = core.reconstruction.fallback_pixels;
     let rec = &core.reconstruction;
     row.metrics = Some(metrics::compare(&rec.filtered, reference, config.exposure).pooled);
-    let energy_aware =
-        energy::energy_aware(&rec.filtered, &core.removed, &rec.occupancy, config.energy_sigma);
+    let energy_aware = energy::energy_aware(
+        &rec.filtered,
+        &core.removed,
+        &rec.occupancy,
+        config.energy_sigma,
+    );
     row.energy_metrics = Some(metrics::compare(&energy_aware, reference, config.exposure).pooled);
     row
 }
@@ -347,6 +360,7 @@ impl Row {
     /// The row of a configuration before it runs.
     fn unrun(config: &FilterConfig, white_value: f64) -> Row {
         Row {
+            final_pass: config.final_pass,
             color_space: config.color_space,
             k: config.k,
             sigma_color: config.sigma_color,

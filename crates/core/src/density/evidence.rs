@@ -1,0 +1,101 @@
+//! The final pass against every sample (docs/filter.md §2, F6a): an
+//! alternative to the paper's step 3 for offline use.
+//!
+//! The paper's replay stores only the samples it cannot accept yet, and its
+//! final pass judges each stored sample against the other stored ones.
+//! Samples accepted while streaming never count as neighbours again. A small
+//! consistent feature — a highlight one pixel wide — is first met by an
+//! empty neighbourhood, so its first k samples are stored, its later ones
+//! are accepted against those, and in the final pass each stored one sees
+//! fewer than k others of its kind and is rejected: the feature loses the
+//! samples it began with. Offline, the whole dump is at hand, so here a
+//! stored sample is judged against every valid sample but itself. The
+//! streaming decisions are the paper's; only the stored samples' final
+//! verdicts change, and never from accepted to rejected: T ∪ accepted ⊇ T,
+//! and a larger set can only lower σ.
+
+use std::time::Instant;
+
+use super::index::NeighbourIndex;
+use super::index::grid::Grid;
+use super::sigma::{Goal, KBest};
+use super::{Decision, FilterResult};
+use crate::dump::{Header, Record, Validity};
+use crate::joint::JointSpace;
+use crate::par::prelude::*;
+
+/// Re-decides `result`'s stored samples against every valid sample but
+/// themselves; σ of those samples is updated when `result` keeps σ.
+pub fn final_pass_against_all(
+    records: &[Record],
+    header: &Header,
+    space: &JointSpace,
+    k: usize,
+    result: &mut FilterResult,
+) {
+    if header.animated() {
+        against_all::<6>(records, header, space, k, result)
+    } else {
+        against_all::<5>(records, header, space, k, result)
+    }
+}
+
+fn against_all<const D: usize>(
+    records: &[Record],
+    header: &Header,
+    space: &JointSpace,
+    k: usize,
+    result: &mut FilterResult,
+) {
+    let t = Instant::now();
+    let extent = [
+        header.width as f64 / space.sigma_image,
+        header.height as f64 / space.sigma_image,
+        header.frames as f64 / space.sigma_time,
+    ];
+    let mut index = Grid::<D>::new(extent);
+    // (record, its id in the index) of every stored sample.
+    let mut stored: Vec<(usize, u32)> = Vec::new();
+    for (i, r) in records.iter().enumerate() {
+        if r.validity(header) != Validity::Valid {
+            continue;
+        }
+        let id = index.insert(space.point::<D>(r));
+        let d = result.decisions[i];
+        if d == Decision::AcceptedFinal as u8 || d == Decision::Rejected as u8 {
+            stored.push((i, id));
+        }
+    }
+    let goal = if result.sigma.is_some() {
+        Goal::Exact
+    } else {
+        Goal::Decide
+    };
+    let verdicts: Vec<_> = stored
+        .par_iter()
+        .map_init(
+            || (KBest::new(k), Default::default()),
+            |(kb, scratch), &(_, id)| {
+                index
+                    .search(index.point(id), Some(id), goal, kb, scratch)
+                    .verdict
+            },
+        )
+        .collect();
+    let counts = &mut result.counts;
+    counts.accepted_final = 0;
+    counts.rejected = 0;
+    for (&(i, _), v) in stored.iter().zip(&verdicts) {
+        if let (Some(sig), Some(s)) = (result.sigma.as_mut(), v.sigma()) {
+            sig[i] = s;
+        }
+        if v.accepted() {
+            result.decisions[i] = Decision::AcceptedFinal as u8;
+            counts.accepted_final += 1;
+        } else {
+            result.decisions[i] = Decision::Rejected as u8;
+            counts.rejected += 1;
+        }
+    }
+    result.final_seconds += t.elapsed().as_secs_f64();
+}
