@@ -10,7 +10,7 @@ use std::path::Path;
 
 use common::*;
 use pathdensity::commands::filter::{FilterOptions, filter};
-use pathdensity::config::White;
+use pathdensity::config::{FilterConfig, FinalPass, White};
 use pathdensity::density::{self, IndexKind, ReplayOptions};
 use pathdensity::dump::{Header, Record};
 use pathdensity::io::exr::read_rgb;
@@ -30,6 +30,9 @@ fn run(h: &Header, recs: &[Record], k: usize, space: JointSpace) -> (FilterRepor
     o.config.sigma_color = space.sigma_color;
     o.config.sigma_time = space.sigma_time;
     o.config.white = White::Fixed(space.white);
+    o.config.color_space = space.color;
+    // The oracle is the paper's replay.
+    o.config.final_pass = FinalPass::Stored;
     o.decisions = Some(dir.path().join("dec"));
     let report = filter(&o).unwrap();
     let decisions = std::fs::read(dir.path().join("dec")).unwrap();
@@ -225,6 +228,8 @@ fn a_million_identical_samples_reject_exactly_k() {
     let dump = write_dump(dir.path(), "d.pds", &h, &recs);
     let mut o = FilterOptions::new(&dump, dir.path().join("out"));
     o.html = false;
+    // The paper's final pass: the first k stored never see k others.
+    o.config = FilterConfig { methods: o.config.methods, ..FilterConfig::PAPER };
     let report = filter(&o).unwrap();
     assert_eq!(report.counts.rejected, 10);
     assert_eq!(report.counts.stored, 10);

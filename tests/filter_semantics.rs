@@ -307,11 +307,13 @@ fn every_index_matches_the_brute_force_oracle() {
         };
         let h = p.header();
         let recs: Vec<Record> = p.records().collect();
+        // Every colour space, in turn.
         let space = JointSpace {
             sigma_image: 1.5,
             sigma_color: 40.0,
             sigma_time: 1.0,
             white: 1.0,
+            color: pathdensity::joint::ColorSpace::ALL[seed as usize % 3],
         };
         let (od, os) = oracle(&recs, &h, k, &space);
         // The library's plain replay (the specification) is the oracle's.

@@ -8,7 +8,7 @@ mod common;
 
 use common::REJECTED;
 use pathdensity::commands::filter::{FilterOptions, filter};
-use pathdensity::config::{FilterConfig, White};
+use pathdensity::config::{ColorSpace, FilterConfig, FinalPass, White};
 use pathdensity::density::{self, Decision, IndexKind, ReplayOptions};
 use pathdensity::dump::{Order, Record};
 use pathdensity::joint::JointSpace;
@@ -195,9 +195,14 @@ proptest! {
         log_st in -25.0f64..25.0,
         white in prop_oneof![Just(White::Auto), (-10.0f64..10.0).prop_map(|e| White::Fixed(10f64.powf(e)))],
         index in prop_oneof![Just(IndexKind::Grid), Just(IndexKind::Kdtree)],
+        color in 0usize..3,
+        against_all in any::<bool>(),
     ) {
+        let final_pass = if against_all { FinalPass::All } else { FinalPass::Stored };
         let config = FilterConfig {
             k,
+            color_space: ColorSpace::ALL[color],
+            final_pass,
             sigma_image: 10f64.powf(log_si),
             sigma_color: 10f64.powf(log_sc),
             sigma_time: 10f64.powf(log_st),
@@ -217,7 +222,7 @@ proptest! {
                 );
             }
             Ok(run) => {
-                let plain = density::plain::replay(&recs, &h, &config.space(run.white), k);
+                let plain = density::plain::replay_with(&recs, &h, &config.space(run.white), k, final_pass);
                 prop_assert_eq!(&run.decisions, &plain.decisions);
                 for e in &run.images {
                     prop_assert!(e.image.data.iter().flatten().all(|v| v.is_finite()), "{}", e.method);

@@ -118,7 +118,9 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
     // Two lines per configuration (filtered, filtered_energy), one per baseline.
     assert_eq!(csv.lines().count(), 1 + 2 * 24 + 12);
     assert_eq!(csv.matches("failed:").count(), 2 * 16);
-    assert_eq!(csv.matches("\nfiltered_energy,stored,cielab,").count(), 24);
+    let d = pathdensity::config::FilterConfig::DEFAULT;
+    let energy_rows = format!("\nfiltered_energy,{},{},", d.final_pass, d.color_space);
+    assert_eq!(csv.matches(&energy_rows).count(), 24);
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("sweep.json")).unwrap()).unwrap();
     assert_eq!(json["rows"].as_array().unwrap().len(), 24);

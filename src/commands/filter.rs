@@ -144,6 +144,7 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
             total_seconds: 0.0,
         },
         metrics: run.metrics.clone(),
+        recommended: pipeline::recommended(&run.images),
         reference: opts.reference.as_ref().map(|p| p.display().to_string()),
         method_seconds: run.images.iter().map(|e| (e.name(), e.seconds)).collect(),
         energy_removed: EnergyRemoved::new(&run.removed, mean),

@@ -64,6 +64,9 @@ pub struct FilterReport {
     /// Per image name (`mean`, `filtered`), metrics against the reference.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub metrics: BTreeMap<String, ImageMetrics>,
+    /// The image a user should use (`pipeline::RECOMMENDED`); the first row
+    /// of the printed table.
+    pub recommended: Option<String>,
     pub reference: Option<String>,
     /// Wall time to produce each image from the dump, passes it shares
     /// with other images included (see README).
@@ -145,6 +148,11 @@ impl FilterReport {
             } else {
                 " "
             };
+            let name = if self.recommended.as_deref() == Some(name.as_str()) {
+                format!("{name} (use)")
+            } else {
+                name
+            };
             match m {
                 Some(m) => {
                     let m = &m.pooled;
@@ -158,6 +166,9 @@ impl FilterReport {
         }
         if best.is_some() {
             s += "  (* lowest RMS)\n";
+        }
+        if let Some(r) = &self.recommended {
+            s += &format!("  (use) {r}: the recommended image (README, \"Which image to use\")\n");
         }
         for n in self.notes() {
             s += &format!("  {n}\n");
@@ -215,9 +226,14 @@ impl FilterReport {
     /// (image name, seconds, metrics) for every image written, in the
     /// canonical method order.
     pub fn method_rows(&self) -> Vec<(String, f64, Option<&ImageMetrics>)> {
-        let names = [false, true]
+        let canonical = [false, true]
             .into_iter()
             .flat_map(|denoised| Method::ALL.iter().map(move |&m| image_name(m, denoised)));
+        let first = self.recommended.clone();
+        let names = first
+            .iter()
+            .cloned()
+            .chain(canonical.filter(|n| Some(n) != first.as_ref()));
         names
             .filter_map(|n| {
                 let secs = *self.method_seconds.get(&n)?;

@@ -70,6 +70,20 @@ pub fn image_name(method: Method, denoised: bool) -> String {
     }
 }
 
+/// The image a user should use, in order of preference: the first of
+/// these a run made is its `recommended` image. Chosen by measurement
+/// (docs/RESULTS.md, "Which image to use").
+pub const RECOMMENDED: [(Method, bool); 2] =
+    [(Method::FilteredEnergy, false), (Method::Filtered, false)];
+
+/// The name of the recommended image among `images`.
+pub fn recommended(images: &[MethodImage]) -> Option<String> {
+    RECOMMENDED
+        .iter()
+        .find(|&&(m, d)| images.iter().any(|e| e.method == m && e.denoised == d))
+        .map(|&(m, d)| image_name(m, d))
+}
+
 /// The images a configuration makes, in order: every selected method, and
 /// with `denoise` OIDN on each of them too (`oidn` is the mean's, so there
 /// is no `mean+oidn`).
