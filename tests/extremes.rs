@@ -229,7 +229,10 @@ fn a_million_identical_samples_reject_exactly_k() {
     let mut o = FilterOptions::new(&dump, dir.path().join("out"));
     o.html = false;
     // The paper's final pass: the first k stored never see k others.
-    o.config = FilterConfig { methods: o.config.methods, ..FilterConfig::PAPER };
+    o.config = FilterConfig {
+        methods: o.config.methods,
+        ..FilterConfig::PAPER
+    };
     let report = filter(&o).unwrap();
     assert_eq!(report.counts.rejected, 10);
     assert_eq!(report.counts.stored, 10);
