@@ -71,6 +71,11 @@ fn against_all<const D: usize>(
     } else {
         Goal::Decide
     };
+    // A sample the paper's final pass accepted is accepted here too (a
+    // larger set only lowers σ): without exact σ it needs no search.
+    if goal == Goal::Decide {
+        stored.retain(|&(i, _)| result.decisions[i] == Decision::Rejected as u8);
+    }
     let verdicts: Vec<_> = stored
         .par_iter()
         .map_init(
@@ -83,9 +88,12 @@ fn against_all<const D: usize>(
         )
         .collect();
     let counts = &mut result.counts;
-    counts.accepted_final = 0;
-    counts.rejected = 0;
     for (&(i, _), v) in stored.iter().zip(&verdicts) {
+        if result.decisions[i] == Decision::AcceptedFinal as u8 {
+            counts.accepted_final -= 1;
+        } else {
+            counts.rejected -= 1;
+        }
         if let (Some(sig), Some(s)) = (result.sigma.as_mut(), v.sigma()) {
             sig[i] = s;
         }
