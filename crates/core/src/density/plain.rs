@@ -48,9 +48,10 @@ fn replay_in<const D: usize>(
     // T: the stored samples' joint points, and which record each is.
     let mut stored: Vec<[f32; D]> = Vec::new();
     let mut stored_at: Vec<usize> = Vec::new();
-    // Every valid sample's point (F6a's final pass needs them all).
+    // Every valid sample's point (F6a's final pass needs them all), and
+    // each stored sample's place among them.
     let mut all: Vec<[f32; D]> = Vec::new();
-    let mut all_id: Vec<usize> = Vec::new();
+    let mut stored_in_all: Vec<usize> = Vec::new();
 
     // Step 1, streaming: a sample whose k nearest stored samples are on
     // average closer than 1 is accepted; any other joins T.
@@ -63,10 +64,7 @@ fn replay_in<const D: usize>(
         }
         counts.valid += 1;
         let p = space.point::<D>(r);
-        if final_pass == FinalPass::All {
-            all_id.push(all.len());
-            all.push(p);
-        }
+        all.push(p);
         sigmas[i] = sigma_against(&p, &stored, None, k);
         if sigmas[i] < 1.0 {
             decisions[i] = Decision::AcceptedStreaming as u8;
@@ -75,6 +73,7 @@ fn replay_in<const D: usize>(
             decisions[i] = Decision::Rejected as u8;
             stored.push(p);
             stored_at.push(i);
+            stored_in_all.push(all.len() - 1);
         }
     }
     let streaming_seconds = t0.elapsed().as_secs_f64();
@@ -82,26 +81,10 @@ fn replay_in<const D: usize>(
     // Step 2, the final pass: each stored sample against all of T but
     // itself, with T fixed (F6a: against every valid sample but itself).
     let t1 = Instant::now();
-    let valid_before: Vec<usize> = if final_pass == FinalPass::All {
-        // The position of each stored sample among the valid ones.
-        let mut pos = Vec::with_capacity(stored_at.len());
-        let mut v = 0;
-        for (i, r) in records.iter().enumerate() {
-            if r.validity(header) == Validity::Valid {
-                if stored_at.binary_search(&i).is_ok() {
-                    pos.push(all_id[v]);
-                }
-                v += 1;
-            }
-        }
-        pos
-    } else {
-        Vec::new()
-    };
     for (id, &i) in stored_at.iter().enumerate() {
         sigmas[i] = match final_pass {
             FinalPass::Stored => sigma_against(&stored[id], &stored, Some(id), k),
-            FinalPass::All => sigma_against(&stored[id], &all, Some(valid_before[id]), k),
+            FinalPass::All => sigma_against(&stored[id], &all, Some(stored_in_all[id]), k),
         };
         if sigmas[i] < 1.0 {
             decisions[i] = Decision::AcceptedFinal as u8;
