@@ -27,12 +27,31 @@ impl Bar {
     }
 }
 
+impl Bar {
+    /// A batch's bar: samples of its dumps, with dumps done, skipped and
+    /// failed beside it.
+    pub fn batch() -> Bar {
+        let bar = Bar::new("");
+        bar.0.set_style(
+            ProgressStyle::with_template(
+                "{msg} [{bar:30}] {human_pos}/{human_len} samples ({per_sec}, eta {eta})",
+            )
+            .expect("static template")
+            .progress_chars("=> "),
+        );
+        bar
+    }
+}
+
 impl Progress for Bar {
     fn set_length(&self, len: u64) {
         self.0.set_length(len);
     }
     fn inc(&self, n: u64) {
         self.0.inc(n);
+    }
+    fn message(&self, msg: &str) {
+        self.0.set_message(msg.to_string());
     }
     fn finish(&self) {
         self.0.finish_and_clear();

@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+use pathdensity::commands::batch::{self, BatchOptions, shard::Shard};
 use pathdensity::commands::{filter, info, regress, sweep};
 use pathdensity::config::{
     ColorSpace, ConfigError, Denoise, FilterConfig, FinalPass, Method, Recon, White,
@@ -181,6 +182,46 @@ enum Command {
         slice_row: Option<u32>,
         /// Skip the PNG previews, σ map, slice plot and report.html (faster:
         /// no exact σ is needed).
+        #[arg(long)]
+        no_html: bool,
+    },
+    /// Filter many dumps with one configuration into OUTDIR/NAME/ each, and
+    /// summarise them (summary.csv, .json, .html); resumable, shardable
+    /// (docs/farm.md).
+    #[command(allow_negative_numbers = true)]
+    Batch {
+        /// Dumps: paths or quoted glob patterns ('shots/*.pds').
+        dumps: Vec<String>,
+        /// A manifest: one dump a line, then per-dump options
+        /// (--reference REF.exr, --name NAME, any configuration flag).
+        #[arg(long)]
+        manifest: Option<PathBuf>,
+        /// Output folder: OUTDIR/NAME/ per dump, the summary beside them.
+        #[arg(short, long, required_unless_present = "merge")]
+        out: Option<PathBuf>,
+        #[command(flatten)]
+        config: ConfigArgs,
+        /// Each dump's reference, {dir} and {stem} standing for the dump's
+        /// folder and file stem: '{dir}/{stem}_ref.exr'.
+        #[arg(long)]
+        reference: Option<String>,
+        /// Worker threads of each dump's filter (default: one per core).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// This process's share, I/N with 0 ≤ I < N (a Slurm array's
+        /// $SLURM_ARRAY_TASK_ID/N); then `--merge OUTDIR`.
+        #[arg(long, default_value_t = Shard::WHOLE)]
+        shard: Shard,
+        /// Filter every dump, even those whose outputs are up to date.
+        #[arg(long)]
+        force: bool,
+        /// Build the summary from the shards' results in this OUTDIR.
+        #[arg(long, value_name = "OUTDIR", conflicts_with_all = ["dumps", "manifest", "out", "shard", "force"])]
+        merge: Option<PathBuf>,
+        /// Also write each dump's sigma.exr.
+        #[arg(long)]
+        sigma_map: bool,
+        /// Skip each dump's PNG previews, σ map and report.html (faster).
         #[arg(long)]
         no_html: bool,
     },
@@ -413,6 +454,40 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             let report = filter::filter_with_progress(&o, &Bar::new("filter"))?;
             print!("{}", report.summary());
         }
+        Command::Batch {
+            dumps,
+            manifest,
+            out,
+            config,
+            reference,
+            threads,
+            shard,
+            force,
+            merge,
+            sigma_map,
+            no_html,
+        } => {
+            let (outcome, shard) = match merge {
+                Some(dir) => (batch::merge(&dir)?, Shard::WHOLE),
+                None => {
+                    let out = out.expect("clap requires --out without --merge");
+                    let mut o = BatchOptions::new(dumps, out);
+                    o.manifest = manifest;
+                    o.config = config.into();
+                    o.reference_pattern = reference;
+                    o.threads = threads;
+                    o.shard = shard;
+                    o.force = force;
+                    o.sigma_map = sigma_map;
+                    o.html = !no_html;
+                    (batch::batch(&o, &Bar::batch())?, shard)
+                }
+            };
+            print!("{}", outcome.text(shard));
+            if outcome.count(batch::Status::Failed) > 0 {
+                return Ok(ExitCode::from(EXIT_SOME_FAILED));
+            }
+        }
         Command::Sweep {
             dump,
             reference,
@@ -500,10 +575,11 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
 
 /// Exit codes (README, "Exit codes"): bad input or I/O, a usage error
 /// (clap's own, or an option value the configuration refuses), a
-/// regression fixture that drifted.
+/// regression fixture that drifted, a batch in which some dumps failed.
 const EXIT_INPUT: u8 = 1;
 const EXIT_USAGE: u8 = 2;
 const EXIT_DRIFT: u8 = 3;
+const EXIT_SOME_FAILED: u8 = 4;
 
 fn main() -> ExitCode {
     pathdensity::cli::clean_up_on_signals();

@@ -51,6 +51,22 @@ impl FilterOptions {
     }
 }
 
+impl FilterOptions {
+    /// XXH3-64 of everything in these options that decides the outputs'
+    /// content (the configuration, the HTML report, the σ map, the slice
+    /// row), as recorded in `report.json`: equal hashes, equal dumps and
+    /// equal references make equal images. Threads and paths are left out.
+    pub fn config_hash(&self) -> u64 {
+        let decides = serde_json::json!({
+            "config": self.config,
+            "html": self.html,
+            "sigma_map": self.sigma_map,
+            "slice_row": self.slice_row,
+        });
+        xxhash_rust::xxh3::xxh3_64(decides.to_string().as_bytes())
+    }
+}
+
 /// Checks the decisions file can be written, before any work.
 fn check_decisions_path(p: &Path) -> Result<()> {
     if p.is_dir() {
@@ -160,6 +176,7 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
             ),
             command: std::env::args().collect(),
             dump_xxh3: format!("{:016x}", dump.content_hash()),
+            config_xxh3: format!("{:016x}", opts.config_hash()),
             reference_xxh3: reference
                 .as_ref()
                 .map(|r| format!("{:016x}", r.content_hash())),

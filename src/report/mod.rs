@@ -16,7 +16,7 @@ pub mod sweep;
 
 use plots::SigmaScale;
 
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Timing {
     pub open_seconds: f64,
     pub streaming_seconds: f64,
@@ -94,6 +94,10 @@ pub struct Provenance {
     pub command: Vec<String>,
     /// XXH3-64 of the dump's header and records, in hex.
     pub dump_xxh3: String,
+    /// XXH3-64 of what else decides the outputs: the configuration and the
+    /// output choices (HTML report, σ map, slice row), in hex
+    /// ([`crate::commands::filter::FilterOptions::config_hash`]).
+    pub config_xxh3: String,
     /// XXH3-64 of the reference as read (its size and every pixel's
     /// bits, frame after frame), in hex.
     #[serde(skip_serializing_if = "Option::is_none")]

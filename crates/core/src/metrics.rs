@@ -4,7 +4,7 @@ use crate::joint::lab::luminance;
 use crate::recon::{Image, stored};
 
 /// All metrics of one image against a reference, over a set of pixels.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Metrics {
     /// sqrt(mean over pixels and channels of (I − R)²), linear values.
     pub rms: f64,
@@ -65,13 +65,60 @@ pub fn compare_pixels(img: &[[f64; 3]], reference: &[[f64; 3]], exposure: f64) -
     }
 }
 
-/// Pooled metrics over all frames, and per frame.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+/// Pooled metrics over all frames, and per frame; for an animation, its
+/// flicker against the reference's.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ImageMetrics {
     #[serde(flatten)]
     pub pooled: Metrics,
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub per_frame: Vec<Metrics>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub temporal: Option<Temporal>,
+}
+
+/// Temporal stability of an animation (docs/filter.md §4, F9t): the RMS of
+/// the image's frame-to-frame differences against the reference's,
+/// √(mean over f ≥ 1, pixels, channels of ((I_f − I_{f−1}) − (R_f − R_{f−1}))²).
+/// A method that is right on average but flickers scores high here.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Temporal {
+    /// On linear values.
+    pub rms: f64,
+    /// On display values (exposed, clamped, sRGB-encoded), what a viewer
+    /// sees flicker on.
+    pub rms_display: f64,
+}
+
+/// [`Temporal`] of `img` against `reference`; `None` for a still.
+pub fn temporal(img: &Image, reference: &Image, exposure: f64) -> Option<Temporal> {
+    if img.frames < 2 {
+        return None;
+    }
+    let (mut se, mut sed, mut n) = (0.0f64, 0.0f64, 0usize);
+    for f in 1..img.frames {
+        let pixels = img
+            .frame(f - 1)
+            .iter()
+            .zip(img.frame(f))
+            .zip(reference.frame(f - 1).iter().zip(reference.frame(f)));
+        for ((a0, a1), (r0, r1)) in pixels {
+            for c in 0..3 {
+                let (a0, a1) = (stored(a0[c]) as f64, stored(a1[c]) as f64);
+                let d = (a1 - a0) - (r1[c] - r0[c]);
+                se += d * d;
+                let dd = (display(a1, exposure) - display(a0, exposure))
+                    - (display(r1[c], exposure) - display(r0[c], exposure));
+                sed += dd * dd;
+                n += 1;
+            }
+        }
+    }
+    let n = n.max(1) as f64;
+    Some(Temporal {
+        rms: (se / n).sqrt(),
+        rms_display: (sed / n).sqrt(),
+    })
 }
 
 pub fn compare(img: &Image, reference: &Image, exposure: f64) -> ImageMetrics {
@@ -83,7 +130,11 @@ pub fn compare(img: &Image, reference: &Image, exposure: f64) -> ImageMetrics {
     } else {
         Vec::new()
     };
-    ImageMetrics { pooled, per_frame }
+    ImageMetrics {
+        pooled,
+        per_frame,
+        temporal: temporal(img, reference, exposure),
+    }
 }
 
 #[cfg(test)]
@@ -123,5 +174,31 @@ mod tests {
         // sRGB curve: linear segment and the power segment.
         assert!((srgb_encode(0.001) - 0.01292).abs() < 1e-15);
         assert!((srgb_encode(1.0) - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn temporal_is_zero_for_steady_offsets_and_sees_flicker() {
+        // Two pixels, three frames. The reference brightens by 0.25 a frame.
+        let mut r = Image::new(2, 1, 3);
+        for f in 0..3 {
+            for p in 0..2 {
+                r.data[f * 2 + p] = [0.25 * f as f64; 3];
+            }
+        }
+        // A constant bias does not flicker.
+        let mut biased = r.clone();
+        biased
+            .data
+            .iter_mut()
+            .for_each(|p| *p = p.map(|v| v + 0.125));
+        assert_eq!(temporal(&biased, &r, 1.0).unwrap().rms, 0.0);
+        // One pixel that jumps by 0.5 in frame 1 and back in frame 2:
+        // differences off by +0.5 then −0.5 on 3 of 12 channel steps each.
+        let mut flicker = r.clone();
+        flicker.data[2] = flicker.data[2].map(|v| v + 0.5);
+        let t = temporal(&flicker, &r, 1.0).unwrap();
+        assert!((t.rms - (2.0 * 3.0 * 0.25f64 / 12.0).sqrt()).abs() < 1e-15);
+        assert!(t.rms_display > 0.0);
+        assert!(temporal(&Image::new(2, 1, 1), &Image::new(2, 1, 1), 1.0).is_none());
     }
 }

@@ -7,6 +7,9 @@
 pub trait Progress: Sync {
     fn set_length(&self, _len: u64) {}
     fn inc(&self, _n: u64) {}
+    /// A short status beside the bar (a batch's dumps done, skipped,
+    /// failed).
+    fn message(&self, _msg: &str) {}
     /// The work is done (a bar clears itself).
     fn finish(&self) {}
 }

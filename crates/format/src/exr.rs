@@ -68,30 +68,35 @@ pub fn read_rgb(path: &Path) -> Result<(usize, usize, Vec<[f64; 3]>)> {
     ))
 }
 
-/// Reads a reference for an image of `frames` frames: `REF.exr` for a
-/// still, `REF_0000.exr`, … beside it for an animation.
+/// The files of a reference for an image of `frames` frames: `REF.exr`
+/// for a still, `REF_0000.exr`, … beside it for an animation.
+pub fn reference_files(path: &Path, frames: usize) -> Vec<std::path::PathBuf> {
+    if frames <= 1 {
+        return vec![path.to_path_buf()];
+    }
+    let name = path
+        .with_extension("")
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    (0..frames)
+        .map(|f| path.with_file_name(frame_file_name(&name, f, frames, "exr")))
+        .collect()
+}
+
+/// Reads a reference for an image of `frames` frames ([`reference_files`]).
 pub fn read_reference(path: &Path, width: usize, height: usize, frames: usize) -> Result<Image> {
     let mut img = Image::new(width, height, frames);
-    for f in 0..frames {
-        let p = if frames > 1 {
-            let stem = path.with_extension("");
-            let name = stem
-                .file_name()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_default();
-            path.with_file_name(frame_file_name(&name, f, frames, "exr"))
-        } else {
-            path.to_path_buf()
-        };
-        let (w, h, px) = read_rgb(&p)?;
+    for (f, p) in reference_files(path, frames).iter().enumerate() {
+        let (w, h, px) = read_rgb(p)?;
         if (w, h) != (width, height) {
             return Err(Error::format(
-                &p,
+                p,
                 format!("reference is {w} × {h}, the dump's film is {width} × {height}"),
             ));
         }
         if px.iter().flatten().any(|v| !v.is_finite()) {
-            return Err(Error::format(&p, "reference holds non-finite values"));
+            return Err(Error::format(p, "reference holds non-finite values"));
         }
         img.data[f * width * height..(f + 1) * width * height].copy_from_slice(&px);
     }

@@ -115,7 +115,7 @@ struct Params<'a> {
     deferral: Option<f64>,
 }
 
-#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct FilterCounts {
     pub records: u64,
     pub valid: u64,

@@ -68,7 +68,7 @@ impl Record {
 }
 
 /// Invalid records by reason.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct InvalidCounts {
     pub non_finite: u64,
     pub outside_film: u64,
