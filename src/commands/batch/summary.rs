@@ -395,7 +395,6 @@ fn plot(
             .margin(12)
             .x_label_area_size(60)
             .y_label_area_size(60)
-            .right_y_label_area_size(160)
             .build_cartesian_2d(-0.5f64..(n as f64 - 0.5), 0f64..y_max)
             .map_err(e)?;
         chart
