@@ -4,7 +4,7 @@
 mod common;
 
 use common::*;
-use pathdensity::density::{self, IndexKind, ReplayOptions};
+use pathdensity::density::{self, ExactSigma, IndexKind, ReplayOptions};
 use pathdensity::dump::{Order, Record};
 use pathdensity::joint::JointSpace;
 use pathdensity::progress::Silent;
@@ -21,6 +21,15 @@ struct Params {
 }
 
 fn params(k: usize, space: JointSpace, index: IndexKind, exact: bool) -> Params {
+    let exact = if exact {
+        ExactSigma::All
+    } else {
+        ExactSigma::None
+    };
+    sampled(k, space, index, exact)
+}
+
+fn sampled(k: usize, space: JointSpace, index: IndexKind, exact: ExactSigma) -> Params {
     let options = ReplayOptions {
         exact_sigma: exact,
         batch: 300,
@@ -336,6 +345,24 @@ fn every_index_matches_the_brute_force_oracle() {
             }
             let fast = run(&recs, &h, &params(k, space, index, false));
             assert_eq!(fast.decisions, od, "seed {seed} {index:?} decide");
+            // The report's σ map: exact σ of one record in 3, NaN elsewhere.
+            let share = ExactSigma::OneIn(3);
+            let some = run(&recs, &h, &sampled(k, space, index, share));
+            assert_eq!(some.decisions, od, "seed {seed} {index:?} one in 3");
+            let s = some.sigma.unwrap();
+            let wanted = (0..recs.len()).filter(|&i| share.wants(i)).count();
+            assert!(
+                wanted > recs.len() / 4 && wanted < recs.len() / 2,
+                "{wanted}"
+            );
+            for i in 0..recs.len() {
+                let want = if share.wants(i) { os[i] } else { f64::NAN };
+                assert_eq!(
+                    s[i].to_bits(),
+                    want.to_bits(),
+                    "seed {seed} {index:?} record {i}"
+                );
+            }
         }
     }
 }

@@ -8,7 +8,7 @@ mod common;
 
 use common::*;
 use pathdensity::config::{ColorSpace, FilterConfig, FinalPass, White};
-use pathdensity::density::{Decision, plain};
+use pathdensity::density::{Decision, ExactSigma, plain};
 use pathdensity::dump::{Header, Order, Record};
 use pathdensity::pipeline;
 use pathdensity::progress::Silent;
@@ -81,7 +81,7 @@ fn config(color_space: ColorSpace, final_pass: FinalPass, white: White) -> Filte
 fn outcome(c: &FilterConfig, exposure: f32) -> (usize, f64) {
     let (h, recs, hl, ff) = highlight_and_fireflies(exposure);
     let white = pipeline::resolve_white(c, &recs, &h).unwrap();
-    let r = pipeline::replay(&recs, &h, c, white, false, &Silent);
+    let r = pipeline::replay(&recs, &h, c, white, ExactSigma::None, &Silent);
     let rejected = |i: &usize| r.decisions[*i] == Decision::Rejected as u8;
     let energy = |i: &usize| recs[*i].b as f64;
     let kept: f64 = hl.iter().filter(|i| !rejected(i)).map(energy).sum();
@@ -161,9 +161,22 @@ fn the_final_pass_against_all_agrees_with_the_plain_oracle() {
                     ..config(space, FinalPass::All, White::Fixed(2.0))
                 };
                 let want = plain::replay_with(&recs, &h, &c.space(2.0), k, FinalPass::All);
-                for threads in [1, 2] {
+                // Every σ, or one in 3 (NaN elsewhere), on 1 and 2 threads.
+                for (threads, exact) in [
+                    (1, ExactSigma::All),
+                    (2, ExactSigma::All),
+                    (2, ExactSigma::OneIn(3)),
+                ] {
                     let pool = pipeline::thread_pool(threads).unwrap();
-                    let got = pool.install(|| pipeline::replay(&recs, &h, &c, 2.0, true, &Silent));
+                    let got = pool.install(|| pipeline::replay(&recs, &h, &c, 2.0, exact, &Silent));
+                    let mut want = want.clone();
+                    if let Some(s) = want.sigma.as_mut() {
+                        for (i, v) in s.iter_mut().enumerate() {
+                            if !exact.wants(i) {
+                                *v = f64::NAN;
+                            }
+                        }
+                    }
                     assert_eq!(got.decisions, want.decisions, "seed {seed} {space} k {k}");
                     let bits = |s: &Option<Vec<f64>>| {
                         s.as_ref()

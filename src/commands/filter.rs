@@ -7,6 +7,7 @@ use std::time::Instant;
 use anyhow::{Result, bail};
 
 use crate::config::{FilterConfig, Method};
+use crate::density::ExactSigma;
 use crate::dump::DumpReader;
 use crate::io::atomic::{self, Staging};
 use crate::io::{exr, png};
@@ -52,6 +53,17 @@ impl FilterOptions {
 }
 
 impl FilterOptions {
+    /// Whose exact σ the run computes: every sample's for `sigma.exr`
+    /// (`sigma_map`), a share for the HTML report's σ map
+    /// ([`ExactSigma::for_map`]), none otherwise.
+    pub fn exact_sigma(&self, spp: u32) -> ExactSigma {
+        match (self.sigma_map, self.html) {
+            (true, _) => ExactSigma::All,
+            (false, true) => ExactSigma::for_map(spp),
+            (false, false) => ExactSigma::None,
+        }
+    }
+
     /// XXH3-64 of everything in these options that decides the outputs'
     /// content (the configuration, the HTML report, the σ map, the slice
     /// row), as recorded in `report.json`: equal hashes, equal dumps and
@@ -116,6 +128,7 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
     let open_seconds = t_start.elapsed().as_secs_f64();
 
     let records = dump.records();
+    let exact_sigma = opts.exact_sigma(h.spp);
     progress.set_length(records.len() as u64);
     let run = pipeline::run(
         records,
@@ -123,7 +136,7 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
         &opts.config,
         &RunOptions {
             threads: opts.threads,
-            exact_sigma: opts.sigma_map || opts.html,
+            exact_sigma,
             reference: reference.as_ref(),
             progress,
         },
@@ -136,7 +149,9 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
         outputs.extend(exr::write_image(dir, &e.name(), &e.image)?);
     }
     outputs.extend(exr::write_image(dir, "rejected", &run.removed)?);
-    if let Some(img) = &run.sigma_image {
+    // sigma.exr holds exact values only: the report's map may be an
+    // estimate from a share of the samples.
+    if let (Some(img), ExactSigma::All) = (&run.sigma_image, exact_sigma) {
         outputs.extend(exr::write_image(dir, "sigma", img)?);
     }
     let slice_row = opts.html.then(|| opts.slice_row.unwrap_or(h.height / 2));
@@ -165,6 +180,10 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
         method_seconds: run.images.iter().map(|e| (e.name(), e.seconds)).collect(),
         energy_removed: EnergyRemoved::new(&run.removed, mean),
         sigma_scale,
+        sigma_map_one_in: match exact_sigma {
+            ExactSigma::OneIn(n) => Some(n),
+            _ => None,
+        },
         slice_row,
         outputs: Vec::new(),
         warnings: run.warnings.clone(),

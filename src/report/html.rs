@@ -132,18 +132,23 @@ pub fn render(report: &FilterReport, assets: &Assets) -> String {
             "<div class=\"bar\"><span>σ {:.3} (red)</span><span>log scale</span><span>σ {:.3} (blue)</span></div>",
             s.low, s.high
         );
-        add(
-            "sigma",
+        let share = match report.sigma_map_one_in {
+            Some(n) => format!(
+                " Estimated from about one sample in {n}, picked alike in every pixel \
+                 (--sigma-map computes every sample's σ and writes sigma.exr)."
+            ),
+            None => String::new(),
+        };
+        let caption = format!(
             "σ map: mean σ of each pixel's samples, each the σ that decided it. \
              Samples whose neighbourhood in T was still sparse when the replay \
              met them (where it starts, e.g. the first rows of a pixel-major \
              dump, and along the film's edges, which have neighbours on one \
              side only) are stored and decided in the final pass against all \
              of T, which tends to give a lower σ: a band there comes from the \
-             replay, not from the image.",
-            frames,
-            &bar,
+             replay, not from the image.{share}"
         );
+        add("sigma", &caption, frames, &bar);
     }
     let slider = if h.frames > 1 {
         format!(

@@ -75,6 +75,11 @@ pub struct FilterReport {
     pub energy_removed: EnergyRemoved,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sigma_scale: Option<SigmaScale>,
+    /// The report's σ map is the mean over about one sample in n (its
+    /// exact σ), an estimate (docs/filter.md §3); absent when every
+    /// sample's σ was computed or there is no map.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma_map_one_in: Option<u32>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub slice_row: Option<u32>,
     pub outputs: Vec<String>,

@@ -24,7 +24,7 @@ fn main() {
     let threads = args.get(2).map_or(0, |t| t.parse().unwrap());
     let options = RunOptions {
         threads,
-        exact_sigma: true,
+        exact_sigma: pathdensity_core::density::ExactSigma::All,
         reference: None,
         progress: &Silent,
     };

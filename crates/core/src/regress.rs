@@ -160,7 +160,7 @@ fn run(dir: &Path, m: &Manifest) -> Result<Outcome> {
         &m.config,
         &RunOptions {
             threads: 1,
-            exact_sigma: false,
+            exact_sigma: crate::density::ExactSigma::None,
             reference: Some(&reference),
             progress: &Silent,
         },

@@ -18,25 +18,27 @@ use std::time::Instant;
 
 use super::index::NeighbourIndex;
 use super::index::grid::Grid;
-use super::sigma::{Goal, KBest};
-use super::{Decision, FilterResult};
+use super::sigma::KBest;
+use super::{Decision, ExactSigma, FilterResult};
 use crate::dump::{Header, Record, Validity};
 use crate::joint::JointSpace;
 use crate::par::prelude::*;
 
 /// Re-decides `result`'s stored samples against every valid sample but
-/// themselves; σ of those samples is updated when `result` keeps σ.
+/// themselves; σ of those `exact` asks for is updated (`result` keeps σ
+/// when `exact` asks for any).
 pub fn final_pass_against_all(
     records: &[Record],
     header: &Header,
     space: &JointSpace,
     k: usize,
+    exact: ExactSigma,
     result: &mut FilterResult,
 ) {
     if header.animated() {
-        against_all::<6>(records, header, space, k, result)
+        against_all::<6>(records, header, space, k, exact, result)
     } else {
-        against_all::<5>(records, header, space, k, result)
+        against_all::<5>(records, header, space, k, exact, result)
     }
 }
 
@@ -45,6 +47,7 @@ fn against_all<const D: usize>(
     header: &Header,
     space: &JointSpace,
     k: usize,
+    exact: ExactSigma,
     result: &mut FilterResult,
 ) {
     let t = Instant::now();
@@ -66,23 +69,16 @@ fn against_all<const D: usize>(
             stored.push((i, id));
         }
     }
-    let goal = if result.sigma.is_some() {
-        Goal::Exact
-    } else {
-        Goal::Decide
-    };
     // A sample the paper's final pass accepted is accepted here too (a
-    // larger set only lowers σ): without exact σ it needs no search.
-    if goal == Goal::Decide {
-        stored.retain(|&(i, _)| result.decisions[i] == Decision::Rejected as u8);
-    }
+    // larger set only lowers σ): unless its σ is wanted it needs no search.
+    stored.retain(|&(i, _)| result.decisions[i] == Decision::Rejected as u8 || exact.wants(i));
     let verdicts: Vec<_> = stored
         .par_iter()
         .map_init(
             || (KBest::new(k), Default::default()),
-            |(kb, scratch), &(_, id)| {
+            |(kb, scratch), &(i, id)| {
                 index
-                    .search(index.point(id), Some(id), goal, kb, scratch)
+                    .search(index.point(id), Some(id), exact.goal(i), kb, scratch)
                     .verdict
             },
         )
@@ -94,7 +90,7 @@ fn against_all<const D: usize>(
         } else {
             counts.rejected -= 1;
         }
-        if let (Some(sig), Some(s)) = (result.sigma.as_mut(), v.sigma()) {
+        if let (Some(sig), Some(s), true) = (result.sigma.as_mut(), v.sigma(), exact.wants(i)) {
             sig[i] = s;
         }
         if v.accepted() {

@@ -30,7 +30,6 @@ pub(super) fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
     start: usize,
     m: usize,
     index: &mut I,
-    goal: Goal,
     worker: &mut Worker<I::Scratch>,
     out: &mut Streaming,
 ) -> usize {
@@ -55,6 +54,7 @@ pub(super) fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
         // Not accepted by the search: its verdict stands only if nothing
         // was stored since.
         let (slot, hit) = (&batch.slots[i], &batch.hits[j]);
+        let goal = slot.goal;
         let settled = !hit.deferred && index.len() == batch.base as usize;
         if !settled {
             // Only the samples that need them visit the seeds: in a
@@ -76,7 +76,10 @@ pub(super) fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
             kb.load(&batch.kbuf[j * k..j * k + hit.klen], hit.sorted);
             index.recheck(&slot.p, batch.base, hit.found, goal, kb, scratch)
         };
-        if let (Some(sig), Some(v)) = (out.sigma.as_mut(), found.verdict.sigma()) {
+        // Only a wanted σ is kept: a search that only had to decide may
+        // have found σ too, or not, depending on the order of work.
+        if let (Some(sig), Some(v), Goal::Exact) = (out.sigma.as_mut(), found.verdict.sigma(), goal)
+        {
             sig[rec] = v;
         }
         if found.verdict.accepted() {

@@ -28,6 +28,7 @@ use index::kdtree::KdTree;
 use crate::dump::{Header, InvalidCounts, Record};
 use crate::joint::JointSpace;
 use crate::progress::Progress;
+use sigma::Goal;
 
 /// The fate of one record, as written by `--decisions` (one byte each).
 #[repr(u8)]
@@ -84,11 +85,72 @@ impl std::fmt::Display for FinalPass {
     }
 }
 
+/// Which samples' exact σ a replay computes. None of these changes a
+/// decision: a search that only decides stops as soon as σ < 1 or σ ≥ 1
+/// is proven, one that wants σ finds the k nearest.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ExactSigma {
+    /// No σ: the fastest replay.
+    #[default]
+    None,
+    /// Every valid sample's (`--sigma-map`).
+    All,
+    /// About one valid sample in n (n ≥ 2), picked by a hash of its record
+    /// index, so the same ones for any order of work and thread count: the
+    /// HTML report's σ map is the mean over these (docs/filter.md §3).
+    OneIn(u32),
+}
+
+impl ExactSigma {
+    /// The report's σ map for a dump of `spp` samples per pixel: about 16
+    /// exact σ per pixel, all of them below 32 spp.
+    pub fn for_map(spp: u32) -> ExactSigma {
+        match spp / 16 {
+            0 | 1 => ExactSigma::All,
+            n => ExactSigma::OneIn(n),
+        }
+    }
+
+    /// Whether any σ is computed.
+    pub fn any(self) -> bool {
+        self != ExactSigma::None
+    }
+
+    /// Whether record `rec`'s exact σ is computed.
+    #[inline]
+    pub fn wants(self, rec: usize) -> bool {
+        match self {
+            ExactSigma::None => false,
+            ExactSigma::All => true,
+            ExactSigma::OneIn(n) => mix(rec as u64) % n as u64 == 0,
+        }
+    }
+
+    /// What the search of record `rec` must establish.
+    #[inline]
+    pub(crate) fn goal(self, rec: usize) -> Goal {
+        if self.wants(rec) {
+            Goal::Exact
+        } else {
+            Goal::Decide
+        }
+    }
+}
+
+/// SplitMix64's finaliser: consecutive indices to unrelated bits, so that
+/// one in n of them is picked evenly over pixels in any dump order.
+#[inline]
+fn mix(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58476d1ce4e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d049bb133111eb);
+    z ^ (z >> 31)
+}
+
 /// How the replay runs. None of these change a decision.
 #[derive(Clone, Debug)]
 pub struct ReplayOptions {
-    /// Compute every sample's exact σ (needed for the σ map).
-    pub exact_sigma: bool,
+    /// Which samples' exact σ to compute (for the σ map).
+    pub exact_sigma: ExactSigma,
     /// Samples per parallel batch.
     pub batch: usize,
     /// The share of searches left to the in-order pass (see `deferral::Deferral`);
@@ -99,7 +161,7 @@ pub struct ReplayOptions {
 impl Default for ReplayOptions {
     fn default() -> Self {
         ReplayOptions {
-            exact_sigma: false,
+            exact_sigma: ExactSigma::None,
             batch: 4096,
             deferral: None,
         }
@@ -110,7 +172,7 @@ impl Default for ReplayOptions {
 struct Params<'a> {
     k: usize,
     space: &'a JointSpace,
-    exact_sigma: bool,
+    exact_sigma: ExactSigma,
     batch: usize,
     deferral: Option<f64>,
 }
@@ -127,10 +189,12 @@ pub struct FilterCounts {
     pub stored: u64,
 }
 
+#[derive(Clone)]
 pub struct FilterResult {
     /// One [`Decision`] byte per record, in file order.
     pub decisions: Vec<u8>,
-    /// With `exact_sigma`: the σ that decided each record (NaN for invalid ones).
+    /// With `exact_sigma`: the σ that decided each record it asks for (NaN
+    /// for the others and for invalid records).
     pub sigma: Option<Vec<f64>>,
     pub counts: FilterCounts,
     pub streaming_seconds: f64,

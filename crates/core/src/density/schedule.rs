@@ -27,7 +27,7 @@ use super::deferral::Deferral;
 use super::in_order::{Streaming, decide_in_order};
 use super::index::NeighbourIndex;
 use super::seeds::{SeedCache, SeedKeys};
-use super::sigma::{Goal, KBest, Verdict};
+use super::sigma::{KBest, Verdict};
 use super::{Decision, FilterCounts, FilterResult, Params};
 use crate::dump::{Header, Record};
 use crate::progress::Progress;
@@ -40,14 +40,10 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
     progress: &dyn Progress,
 ) -> FilterResult {
     let k = params.k;
-    let goal = if params.exact_sigma {
-        Goal::Exact
-    } else {
-        Goal::Decide
-    };
+    let exact = params.exact_sigma;
     let n = records.len();
     let mut decisions = vec![Decision::Invalid as u8; n];
-    let mut sigma = params.exact_sigma.then(|| vec![f64::NAN; n]);
+    let mut sigma = exact.any().then(|| vec![f64::NAN; n]);
     let mut counts = FilterCounts {
         records: n as u64,
         ..Default::default()
@@ -75,17 +71,19 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
     let workers = Worker::<I::Scratch>::per_thread(k, seed_keys.slots);
     for (j, start) in (0..n).step_by(batch).take(2).enumerate() {
         batches[j].prepare(
+            start,
             &records[range(start)],
             &lagging,
             header,
             params.space,
             seed_keys,
+            exact,
         );
     }
     if n > 0 {
         // Nothing is stored yet: the first batch is decided in order
         // whatever its search finds.
-        batches[0].search(&lagging, k, goal, 0.0, &workers);
+        batches[0].search(&lagging, k, 0.0, &workers);
     }
     for start in (0..n).step_by(batch) {
         let m = range(start).len();
@@ -117,7 +115,6 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
                             start,
                             m,
                             &mut index,
-                            goal,
                             &mut in_order_worker,
                             &mut out,
                         );
@@ -125,8 +122,18 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
                     },
                     || {
                         if start + 2 * batch < n {
-                            let recs = &records[range(start + 2 * batch)];
-                            after.prepare(recs, lagging_ref, header, params.space, seed_keys);
+                            let first = start + 2 * batch;
+                            let recs = &records[range(first)];
+                            let space = params.space;
+                            after.prepare(
+                                first,
+                                recs,
+                                lagging_ref,
+                                header,
+                                space,
+                                seed_keys,
+                                exact,
+                            );
                         }
                     },
                 )
@@ -138,7 +145,7 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
             || {
                 let t = Instant::now();
                 if start + batch < n {
-                    next.search(lagging_ref, k, goal, share, workers);
+                    next.search(lagging_ref, k, share, workers);
                 }
                 let search = t.elapsed().as_secs_f64();
                 searched.store(true, Release);
@@ -163,6 +170,7 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
         .map_init(
             || (KBest::new(k), I::Scratch::default()),
             |(kb, scratch), id| {
+                let goal = exact.goal(stored_at[id as usize] as usize);
                 index
                     .search(index.point(id), Some(id), goal, kb, scratch)
                     .verdict
@@ -170,7 +178,7 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
         )
         .collect();
     for (&rec, v) in stored_at.iter().zip(&finals) {
-        if let (Some(sig), Some(s)) = (sigma.as_mut(), v.sigma()) {
+        if let (Some(sig), Some(s), true) = (sigma.as_mut(), v.sigma(), exact.wants(rec as usize)) {
             sig[rec as usize] = s;
         }
         if v.accepted() {

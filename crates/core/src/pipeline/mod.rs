@@ -11,10 +11,11 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use crate::config::{ConfigError, Denoise, FilterConfig, FinalPass, White};
-use crate::density::{self, Decision, FilterCounts, FilterResult, ReplayOptions};
+use crate::density::{self, Decision, ExactSigma, FilterCounts, FilterResult, ReplayOptions};
 use crate::dump::{Header, Record, Validity};
 use crate::joint::white::auto_white;
 use crate::metrics::{self, ImageMetrics};
+use crate::par::prelude::*;
 use crate::progress::Progress;
 use crate::recon::{self, Image};
 use estimate::{Core, Estimators, Shared};
@@ -37,8 +38,8 @@ pub enum PipelineError {
 pub struct RunOptions<'a> {
     /// Worker threads; 0 means one per core.
     pub threads: usize,
-    /// Keep every sample's exact σ (for the σ map; slower).
-    pub exact_sigma: bool,
+    /// Which samples' exact σ to keep (for the σ map; slower).
+    pub exact_sigma: ExactSigma,
     /// Measure every image against this reference.
     pub reference: Option<&'a Image>,
     pub progress: &'a dyn Progress,
@@ -270,7 +271,7 @@ pub fn replay(
     header: &Header,
     config: &FilterConfig,
     white: f64,
-    exact_sigma: bool,
+    exact_sigma: ExactSigma,
     progress: &dyn Progress,
 ) -> FilterResult {
     let options = ReplayOptions {
@@ -288,7 +289,15 @@ pub fn replay(
         progress,
     );
     if config.final_pass == FinalPass::All {
-        density::evidence::final_pass_against_all(records, header, &space, config.k, &mut result);
+        let k = config.k;
+        density::evidence::final_pass_against_all(
+            records,
+            header,
+            &space,
+            k,
+            exact_sigma,
+            &mut result,
+        );
     }
     result
 }
@@ -335,10 +344,12 @@ pub fn run(
     let core = reconstruct(records, header, config, accepted, replay_seconds);
     let shared = Shared::new(records, header);
     let estimators = Estimators::new(&shared, config, white, &core);
+    // The images in parallel (each is deterministic on its own, and the
+    // passes they share are computed once, by whichever needs one first).
     let images: Vec<MethodImage> = pool.install(|| {
         images_of(config)
-            .into_iter()
-            .map(|(method, denoised)| {
+            .par_iter()
+            .map(|&(method, denoised)| {
                 let made = if denoised {
                     estimators.denoised(method)
                 } else {

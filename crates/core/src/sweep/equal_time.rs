@@ -8,7 +8,7 @@ use anyhow::{Result, bail};
 
 use super::SweepOptions;
 use crate::config::{FilterConfig, Method};
-use crate::density::Decision;
+use crate::density::{Decision, ExactSigma};
 use crate::dump::{DumpReader, Order};
 use crate::io::exr;
 use crate::metrics::{self, Metrics};
@@ -124,7 +124,7 @@ pub fn equal_time(
         let (ph, recs) = prefix(m);
         let t = Instant::now();
         let (filtered, filter_secs, energy_aware) = pool.install(|| {
-            let result = pipeline::replay(recs, &ph, &config, white, false, &Silent);
+            let result = pipeline::replay(recs, &ph, &config, white, ExactSigma::None, &Silent);
             let accepted = |i: usize| Decision::accepted(result.decisions[i]);
             let core = pipeline::reconstruct(recs, &ph, &config, accepted, 0.0);
             let secs = t.elapsed().as_secs_f64();

@@ -11,6 +11,7 @@ use std::time::Instant;
 use anyhow::{Result, bail};
 
 use crate::config::{ColorSpace, FilterConfig, FinalPass, Method, White};
+use crate::density::ExactSigma;
 use crate::dump::{DumpReader, Header, Record};
 use crate::io::exr;
 use crate::metrics::{self, Metrics};
@@ -328,7 +329,7 @@ fn configuration(
         h,
         config,
         white_value,
-        false,
+        ExactSigma::None,
         &crate::progress::Silent,
     );
     let core = pipeline::reconstruct(
