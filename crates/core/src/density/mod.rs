@@ -122,7 +122,7 @@ impl ExactSigma {
         match self {
             ExactSigma::None => false,
             ExactSigma::All => true,
-            ExactSigma::OneIn(n) => mix(rec as u64) % n as u64 == 0,
+            ExactSigma::OneIn(n) => mix(rec as u64).is_multiple_of(n as u64),
         }
     }
 
