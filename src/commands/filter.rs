@@ -17,6 +17,7 @@ use crate::recon::Image;
 use crate::report::html::{self, Assets};
 use crate::report::plots;
 use crate::report::{EnergyRemoved, FilterReport, Provenance, Timing};
+use rayon::prelude::*;
 
 #[derive(Clone, Debug)]
 pub struct FilterOptions {
@@ -144,10 +145,15 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
 
     let t_write = Instant::now();
     let dir = staging.path();
-    let mut outputs = Vec::new();
-    for e in &run.images {
-        outputs.extend(exr::write_image(dir, &e.name(), &e.image)?);
-    }
+    // Every image is written (and previewed) on its own: in parallel.
+    let pool = pipeline::thread_pool(opts.threads)?;
+    let exrs: Vec<Vec<String>> = pool.install(|| {
+        run.images
+            .par_iter()
+            .map(|e| exr::write_image(dir, &e.name(), &e.image))
+            .collect::<Result<_, _>>()
+    })?;
+    let mut outputs: Vec<String> = exrs.into_iter().flatten().collect();
     outputs.extend(exr::write_image(dir, "rejected", &run.removed)?);
     // sigma.exr holds exact values only: the report's map may be an
     // estimate from a share of the samples.
@@ -231,9 +237,19 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
         if let Some(r) = &reference {
             assets.reference = Some(previews("reference", tone(r), &mut outputs)?);
         }
-        for e in &run.images {
-            let frames = previews(&e.name(), tone(&e.image), &mut outputs)?;
-            assets.images.push((e.name(), frames));
+        let pngs: Vec<(String, Vec<Vec<u8>>, Vec<String>)> = pool.install(|| {
+            run.images
+                .par_iter()
+                .map(|e| {
+                    let mut files = Vec::new();
+                    let frames = previews(&e.name(), tone(&e.image), &mut files)?;
+                    Ok((e.name(), frames, files))
+                })
+                .collect::<Result<_>>()
+        })?;
+        for (name, frames, files) in pngs {
+            assets.images.push((name, frames));
+            outputs.extend(files);
         }
         let frames = previews("rejected", tone(&run.removed), &mut outputs)?;
         assets.images.push(("rejected".to_string(), frames));

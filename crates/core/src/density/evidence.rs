@@ -42,6 +42,23 @@ pub fn final_pass_against_all(
     }
 }
 
+/// Samples a cell of the grid over every sample holds on average, at most:
+/// that grid is far denser than T's, whose one-unit cells would hold
+/// hundreds of samples at 64 spp and make every search scan them
+/// (docs/BENCHMARKS.md, "The default run").
+const SAMPLES_PER_CELL: f64 = 64.0;
+
+/// The log2 of the cell side (joint units) that keeps `valid` samples over
+/// `extent`'s first `axes` axes within [`SAMPLES_PER_CELL`] a cell.
+fn cell_side(extent: [f64; 3], axes: usize, valid: u64) -> i32 {
+    let volume: f64 = extent[..axes].iter().product();
+    let mut log2 = 0;
+    while log2 > -8 && valid as f64 / volume * 2f64.powi(log2 * axes as i32) > SAMPLES_PER_CELL {
+        log2 -= 1;
+    }
+    log2
+}
+
 fn against_all<const D: usize>(
     records: &[Record],
     header: &Header,
@@ -56,7 +73,8 @@ fn against_all<const D: usize>(
         header.height as f64 / space.sigma_image,
         header.frames as f64 / space.sigma_time,
     ];
-    let mut index = Grid::<D>::new(extent);
+    let side = cell_side(extent, D - 3, result.counts.valid);
+    let mut index = Grid::<D>::with_side(extent, side);
     // (record, its id in the index) of every stored sample.
     let mut stored: Vec<(usize, u32)> = Vec::new();
     for (i, r) in records.iter().enumerate() {
@@ -102,4 +120,21 @@ fn against_all<const D: usize>(
         }
     }
     result.final_seconds += t.elapsed().as_secs_f64();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cells_shrink_with_the_density_of_samples() {
+        // 128 × 128 pixels at σ_image = 3: 42.7 joint units a side.
+        let extent = [128.0 / 3.0, 128.0 / 3.0, 1.0];
+        let pixels = 128 * 128;
+        assert_eq!(cell_side(extent, 2, pixels * 4), 0);
+        // 16 spp: 144 samples a unit², 36 in a cell of ½.
+        assert_eq!(cell_side(extent, 2, pixels * 16), -1);
+        assert_eq!(cell_side(extent, 2, pixels * 64), -2);
+        assert_eq!(cell_side(extent, 2, u64::MAX), -8);
+    }
 }
