@@ -184,6 +184,46 @@ fn every_output_is_bit_identical_for_1_2_and_8_threads() {
     assert!(outputs[0] == outputs[1] && outputs[1] == outputs[2]);
 }
 
+/// At 64 spp the report's σ map is the mean over one sample in 4 (exact σ,
+/// the same samples for any thread count) and no sigma.exr is written.
+#[test]
+fn the_reports_sigma_map_estimate_is_the_same_for_any_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = SynthParams {
+        width: 24,
+        height: 16,
+        spp: 64,
+        firefly_fraction: 0.02,
+        order: pathdensity::dump::Order::PassMajor,
+        ..SynthParams::default()
+    };
+    let dump = synth(dir.path(), "d.pds", &p);
+    let maps: Vec<Vec<u8>> = [1, 2]
+        .iter()
+        .map(|t| {
+            let out = dir.path().join(format!("out{t}"));
+            run_ok(&[
+                "filter",
+                &dump,
+                "-o",
+                out.to_str().unwrap(),
+                "--threads",
+                &t.to_string(),
+            ]);
+            assert!(
+                !out.join("sigma.exr").exists(),
+                "sigma.exr is exact or absent"
+            );
+            let r = report(&out);
+            assert_eq!(r["sigma_map_one_in"], 4);
+            std::fs::read(out.join("sigma.png")).unwrap()
+        })
+        .collect();
+    assert_eq!(maps[0], maps[1]);
+    let html = std::fs::read_to_string(dir.path().join("out1/report.html")).unwrap();
+    assert!(html.contains("Estimated from about one sample in 4"));
+}
+
 #[test]
 fn an_animation_writes_every_image_per_frame() {
     let dir = tempfile::tempdir().unwrap();
