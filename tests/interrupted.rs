@@ -121,9 +121,15 @@ fn a_killed_filter_leaves_complete_files_and_the_previous_outputs() {
                 "after {signal} at {ms} ms: the previous run, whole"
             );
         } else {
-            // The new run had swapped in before the signal: whole too.
+            // The new run had swapped in before the signal: whole too,
+            // every file its report lists and nothing else.
             assert_eq!(made_from, big.to_str().unwrap());
-            assert!(n >= before, "after {signal} at {ms} ms: {n} files");
+            let t = std::fs::read_to_string(out.join("report.json")).unwrap();
+            let listed = serde_json::from_str::<serde_json::Value>(&t).unwrap()["outputs"]
+                .as_array()
+                .unwrap()
+                .len();
+            assert_eq!(n, listed, "after {signal} at {ms} ms: {n} files");
             // Start over from the small run for the next point.
             filter_small();
         }
