@@ -201,3 +201,50 @@ fn the_final_pass_against_all_agrees_with_the_plain_oracle() {
         }
     }
 }
+
+/// F6a over more records than one job of its pass over the dump (65,536):
+/// the k nearest of each stored sample merged from several jobs give the
+/// oracle's decisions and σ on 1 and 2 threads.
+#[test]
+fn the_final_pass_against_all_merges_its_jobs_exactly() {
+    let p = pathdensity::synth::SynthParams {
+        width: 48,
+        height: 40,
+        spp: 80,
+        firefly_fraction: 0.002,
+        order: Order::PassMajor,
+        seed: 11,
+        ..pathdensity::synth::SynthParams::default()
+    };
+    let h = p.header();
+    let recs: Vec<Record> = p.records().collect();
+    assert!(recs.len() > 2 * 65_536);
+    let c = config(ColorSpace::Logluv, FinalPass::All, White::Fixed(1.0));
+    let mut want = plain::replay_with(&recs, &h, &c.space(1.0), c.k, FinalPass::All);
+    let share = ExactSigma::OneIn(3);
+    for (i, s) in want.sigma.as_mut().unwrap().iter_mut().enumerate() {
+        if !share.wants(i) {
+            *s = f64::NAN;
+        }
+    }
+    for threads in [1, 2] {
+        let pool = pipeline::thread_pool(threads).unwrap();
+        let got = pool.install(|| pipeline::replay(&recs, &h, &c, 1.0, share, &Silent));
+        assert_eq!(got.decisions, want.decisions, "{threads} threads");
+        assert_eq!(got.counts, want.counts);
+        let bits = |s: &Option<Vec<f64>>| {
+            s.as_ref()
+                .unwrap()
+                .iter()
+                .map(|v| v.to_bits())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(bits(&got.sigma), bits(&want.sigma), "{threads} threads");
+    }
+    // Some stored samples were judged again, and some of them kept.
+    assert!(
+        want.counts.accepted_final > 0 && want.counts.rejected > 0,
+        "{:?}",
+        want.counts
+    );
+}

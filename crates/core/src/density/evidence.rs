@@ -13,15 +13,24 @@
 //! streaming decisions are the paper's; only the stored samples' final
 //! verdicts change, and never from accepted to rejected: T ∪ accepted ⊇ T,
 //! and a larger set can only lower σ.
+//!
+//! How, in memory proportional to T: the stored samples to judge are the
+//! queries. Each query's k nearest among all samples lie within its k-th
+//! nearest distance in T (T minus itself is part of every sample but
+//! itself), found by one exact search in a grid over T. The dump is then
+//! read once, in parallel jobs: every valid sample is offered to the
+//! queries whose reach its cell lies in. Each job keeps its own k nearest
+//! per query; their union's k smallest, the same whatever the split, give
+//! the canonical σ. Nothing is kept per sample of the dump.
 
 use std::time::Instant;
 
 use super::index::NeighbourIndex;
 use super::index::grid::Grid;
-use super::sigma::KBest;
+use super::sigma::{Goal, KBest};
 use super::{Decision, ExactSigma, FilterResult};
 use crate::dump::{Header, Record, Validity};
-use crate::joint::JointSpace;
+use crate::joint::{JointSpace, dist2};
 use crate::par::prelude::*;
 
 /// Re-decides `result`'s stored samples against every valid sample but
@@ -42,22 +51,12 @@ pub fn final_pass_against_all(
     }
 }
 
-/// Samples a cell of the grid over every sample holds on average, at most:
-/// that grid is far denser than T's, whose one-unit cells would hold
-/// hundreds of samples at 64 spp and make every search scan them
-/// (docs/BENCHMARKS.md, "The default run").
-const SAMPLES_PER_CELL: f64 = 64.0;
+/// Records per parallel job of the pass over the dump.
+const CHUNK: usize = 1 << 16;
 
-/// The log2 of the cell side (joint units) that keeps `valid` samples over
-/// `extent`'s first `axes` axes within [`SAMPLES_PER_CELL`] a cell.
-fn cell_side(extent: [f64; 3], axes: usize, valid: u64) -> i32 {
-    let volume: f64 = extent[..axes].iter().product();
-    let mut log2 = 0;
-    while log2 > -8 && valid as f64 / volume * 2f64.powi(log2 * axes as i32) > SAMPLES_PER_CELL {
-        log2 -= 1;
-    }
-    log2
-}
+/// Upper limit on the cells of the grid of queries; the side doubles
+/// until it fits.
+const MAX_CELLS: usize = 1 << 20;
 
 fn against_all<const D: usize>(
     records: &[Record],
@@ -73,45 +72,102 @@ fn against_all<const D: usize>(
         header.height as f64 / space.sigma_image,
         header.frames as f64 / space.sigma_time,
     ];
-    let side = cell_side(extent, D - 3, result.counts.valid);
-    let mut index = Grid::<D>::with_side(extent, side);
-    // (record, its id in the index) of every stored sample.
-    let mut stored: Vec<(usize, u32)> = Vec::new();
-    for (i, r) in records.iter().enumerate() {
-        if r.validity(header) != Validity::Valid {
-            continue;
-        }
-        let id = index.insert(space.point::<D>(r));
-        let d = result.decisions[i];
-        if d == Decision::AcceptedFinal as u8 || d == Decision::Rejected as u8 {
-            stored.push((i, id));
-        }
-    }
+    // T: the samples the paper's replay stored, which its final pass judged.
+    let stored: Vec<usize> = (0..records.len())
+        .filter(|&i| {
+            let d = result.decisions[i];
+            d == Decision::AcceptedFinal as u8 || d == Decision::Rejected as u8
+        })
+        .collect();
+    let mut t_index = Grid::<D>::new(extent);
+    let ids: Vec<u32> = stored
+        .iter()
+        .map(|&i| t_index.insert(space.point::<D>(&records[i])))
+        .collect();
     // A sample the paper's final pass accepted is accepted here too (a
     // larger set only lowers σ): unless its σ is wanted it needs no search.
-    stored.retain(|&(i, _)| result.decisions[i] == Decision::Rejected as u8 || exact.wants(i));
-    let verdicts: Vec<_> = stored
+    let asked: Vec<(usize, u32)> = stored
+        .iter()
+        .zip(&ids)
+        .filter(|&(&i, _)| result.decisions[i] == Decision::Rejected as u8 || exact.wants(i))
+        .map(|(&i, &id)| (i, id))
+        .collect();
+    // Each query's reach: T minus itself is part of every sample but
+    // itself, so its k nearest among all lie within its k-th nearest
+    // distance in T. A query that only decides needs no point farther
+    // than k: k neighbours closer than that are its k nearest, and fewer
+    // reject it (σ ≥ 1).
+    let queries: Vec<Query<D>> = asked
         .par_iter()
         .map_init(
             || (KBest::new(k), Default::default()),
-            |(kb, scratch), &(i, id)| {
-                index
-                    .search(index.point(id), Some(id), exact.goal(i), kb, scratch)
-                    .verdict
+            |(kb, scratch), &(rec, id)| {
+                let p = *t_index.point(id);
+                t_index.search(&p, Some(id), Goal::Exact, kb, scratch);
+                let mut reach2 = kb.worst2();
+                if !exact.wants(rec) {
+                    reach2 = reach2.min((k * k) as f64);
+                }
+                Query { rec, p, reach2 }
             },
         )
         .collect();
+    drop(t_index);
+    // Every valid sample offered to the queries whose reach it may be in,
+    // found through a grid over the image (and time) axes where each query
+    // is listed in every cell its reach touches.
+    let cells = QueryCells::new(extent, D - 3, &queries);
+    let partial: Vec<Vec<KBest>> = records
+        .par_chunks(CHUNK)
+        .enumerate()
+        .map(|(c, chunk)| {
+            let mut kbs = vec![KBest::new(k); queries.len()];
+            for (j, r) in chunk.iter().enumerate() {
+                if r.validity(header) != Validity::Valid {
+                    continue;
+                }
+                let rec = c * CHUNK + j;
+                let p = space.point::<D>(r);
+                for &q in cells.at(&p) {
+                    let query = &queries[q as usize];
+                    if query.rec == rec {
+                        continue;
+                    }
+                    let d2 = dist2(&p, &query.p);
+                    if d2 <= query.reach2 {
+                        kbs[q as usize].push(d2, u32::MAX);
+                    }
+                }
+            }
+            kbs
+        })
+        .collect();
+    // The k smallest of the union, whatever the split: the same bits for
+    // any thread count.
+    let verdicts: Vec<f64> = (0..queries.len())
+        .map(|q| {
+            let mut kb = KBest::new(k);
+            for part in &partial {
+                for &d2 in part[q].as_slice() {
+                    kb.push(d2, u32::MAX);
+                }
+            }
+            kb.sort();
+            kb.sigma()
+        })
+        .collect();
     let counts = &mut result.counts;
-    for (&(i, _), v) in stored.iter().zip(&verdicts) {
+    for (query, &sigma) in queries.iter().zip(&verdicts) {
+        let i = query.rec;
         if result.decisions[i] == Decision::AcceptedFinal as u8 {
             counts.accepted_final -= 1;
         } else {
             counts.rejected -= 1;
         }
-        if let (Some(sig), Some(s), true) = (result.sigma.as_mut(), v.sigma(), exact.wants(i)) {
-            sig[i] = s;
+        if let (Some(sig), true) = (result.sigma.as_mut(), exact.wants(i)) {
+            sig[i] = sigma;
         }
-        if v.accepted() {
+        if sigma < 1.0 {
             result.decisions[i] = Decision::AcceptedFinal as u8;
             counts.accepted_final += 1;
         } else {
@@ -122,19 +178,83 @@ fn against_all<const D: usize>(
     result.final_seconds += t.elapsed().as_secs_f64();
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+/// A stored sample to judge against every sample: its record, its point,
+/// and the squared distance within which its k nearest lie.
+struct Query<const D: usize> {
+    rec: usize,
+    p: [f32; D],
+    reach2: f64,
+}
 
-    #[test]
-    fn cells_shrink_with_the_density_of_samples() {
-        // 128 × 128 pixels at σ_image = 3: 42.7 joint units a side.
-        let extent = [128.0 / 3.0, 128.0 / 3.0, 1.0];
-        let pixels = 128 * 128;
-        assert_eq!(cell_side(extent, 2, pixels * 4), 0);
-        // 16 spp: 144 samples a unit², 36 in a cell of ½.
-        assert_eq!(cell_side(extent, 2, pixels * 16), -1);
-        assert_eq!(cell_side(extent, 2, pixels * 64), -2);
-        assert_eq!(cell_side(extent, 2, u64::MAX), -8);
+/// The queries listed by the cells of a grid over the first `axes`
+/// coordinates (x, y and, for animations, t) that their reach touches.
+struct QueryCells {
+    axes: usize,
+    side: f64,
+    dims: [usize; 3],
+    lists: Vec<Vec<u32>>,
+}
+
+impl QueryCells {
+    fn new<const D: usize>(extent: [f64; 3], axes: usize, queries: &[Query<D>]) -> QueryCells {
+        let mut side = 1.0f64;
+        let dims_for = |side: f64| {
+            let mut d = [1usize; 3];
+            for a in 0..axes {
+                d[a] = (extent[a] / side).ceil().clamp(1.0, 1e15) as usize;
+            }
+            d
+        };
+        let mut dims = dims_for(side);
+        while dims.iter().fold(1usize, |n, &x| n.saturating_mul(x)) > MAX_CELLS {
+            side *= 2.0;
+            dims = dims_for(side);
+        }
+        let mut cells = QueryCells {
+            axes,
+            side,
+            dims,
+            lists: vec![Vec::new(); dims.iter().product()],
+        };
+        for (q, query) in queries.iter().enumerate() {
+            // One cell more on each side than the reach covers: a point in
+            // any other cell is farther than the reach along some axis.
+            let reach = query.reach2.sqrt();
+            let mut lo = [0usize; 3];
+            let mut hi = [0usize; 3];
+            for a in 0..axes {
+                let v = query.p[a] as f64;
+                lo[a] = cells.index(v - reach, a).saturating_sub(1);
+                hi[a] = (cells.index(v + reach, a) + 1).min(dims[a] - 1);
+            }
+            for z in lo[2]..=hi[2] {
+                for y in lo[1]..=hi[1] {
+                    for x in lo[0]..=hi[0] {
+                        let c = (z * dims[1] + y) * dims[0] + x;
+                        cells.lists[c].push(q as u32);
+                    }
+                }
+            }
+        }
+        cells
+    }
+
+    /// The cell of coordinate `v` along axis `a`, clamped to the grid.
+    fn index(&self, v: f64, a: usize) -> usize {
+        let c = (v / self.side).floor();
+        if c.is_nan() || c <= 0.0 {
+            0
+        } else {
+            (c as usize).min(self.dims[a] - 1)
+        }
+    }
+
+    /// The queries listed in the cell of `p`.
+    fn at<const D: usize>(&self, p: &[f32; D]) -> &[u32] {
+        let mut c = [0usize; 3];
+        for (a, ca) in c.iter_mut().enumerate().take(self.axes) {
+            *ca = self.index(p[a] as f64, a);
+        }
+        &self.lists[(c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]]
     }
 }
