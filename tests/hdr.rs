@@ -8,7 +8,8 @@ mod common;
 
 use common::*;
 use pathdensity::config::{ColorSpace, FilterConfig, FinalPass, White};
-use pathdensity::density::{Decision, ExactSigma, plain};
+use pathdensity::density::evidence::{AllSamples, final_pass_against_all_with};
+use pathdensity::density::{Decision, ExactSigma, ReplayOptions, plain};
 use pathdensity::dump::{Header, Order, Record};
 use pathdensity::pipeline;
 use pathdensity::progress::Silent;
@@ -66,6 +67,25 @@ fn highlight_and_fireflies(exposure: f32) -> (Header, Vec<Record>, Vec<usize>, V
     h.spp = SPP;
     h.order = Order::PassMajor;
     (h, records, hl, ff)
+}
+
+/// `pipeline::replay` with F6a's neighbours found the way `how` says.
+fn replay_all(
+    recs: &[Record],
+    h: &Header,
+    c: &FilterConfig,
+    white: f64,
+    exact: ExactSigma,
+    how: AllSamples,
+) -> pathdensity::density::FilterResult {
+    let options = ReplayOptions {
+        exact_sigma: exact,
+        ..ReplayOptions::default()
+    };
+    let space = c.space(white);
+    let mut r = pathdensity::density::run(recs, h, &space, c.k, c.index, &options, &Silent);
+    final_pass_against_all_with(recs, h, &space, c.k, exact, &mut r, how);
+    r
 }
 
 fn config(color_space: ColorSpace, final_pass: FinalPass, white: White) -> FilterConfig {
@@ -169,6 +189,23 @@ fn the_final_pass_against_all_agrees_with_the_plain_oracle() {
                 ] {
                     let pool = pipeline::thread_pool(threads).unwrap();
                     let got = pool.install(|| pipeline::replay(&recs, &h, &c, 2.0, exact, &Silent));
+                    let streamed = pool
+                        .install(|| replay_all(&recs, &h, &c, 2.0, exact, AllSamples::Streamed));
+                    assert_eq!(
+                        streamed.decisions, got.decisions,
+                        "seed {seed} {space} k {k} streamed"
+                    );
+                    let same_bits = |a: &Option<Vec<f64>>, b: &Option<Vec<f64>>| {
+                        a.as_ref()
+                            .unwrap()
+                            .iter()
+                            .zip(b.as_ref().unwrap())
+                            .all(|(x, y)| x.to_bits() == y.to_bits())
+                    };
+                    assert!(
+                        same_bits(&streamed.sigma, &got.sigma),
+                        "seed {seed} {space} k {k} streamed σ"
+                    );
                     let mut want = want.clone();
                     if let Some(s) = want.sigma.as_mut() {
                         for (i, v) in s.iter_mut().enumerate() {
@@ -229,17 +266,23 @@ fn the_final_pass_against_all_merges_its_jobs_exactly() {
     }
     for threads in [1, 2] {
         let pool = pipeline::thread_pool(threads).unwrap();
-        let got = pool.install(|| pipeline::replay(&recs, &h, &c, 1.0, share, &Silent));
-        assert_eq!(got.decisions, want.decisions, "{threads} threads");
-        assert_eq!(got.counts, want.counts);
-        let bits = |s: &Option<Vec<f64>>| {
-            s.as_ref()
-                .unwrap()
-                .iter()
-                .map(|v| v.to_bits())
-                .collect::<Vec<_>>()
-        };
-        assert_eq!(bits(&got.sigma), bits(&want.sigma), "{threads} threads");
+        for how in [AllSamples::Grid, AllSamples::Streamed] {
+            let got = pool.install(|| replay_all(&recs, &h, &c, 1.0, share, how));
+            assert_eq!(got.decisions, want.decisions, "{threads} threads {how:?}");
+            assert_eq!(got.counts, want.counts);
+            let bits = |s: &Option<Vec<f64>>| {
+                s.as_ref()
+                    .unwrap()
+                    .iter()
+                    .map(|v| v.to_bits())
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(
+                bits(&got.sigma),
+                bits(&want.sigma),
+                "{threads} threads {how:?}"
+            );
+        }
     }
     // Some stored samples were judged again, and some of them kept.
     assert!(

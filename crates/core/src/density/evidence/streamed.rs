@@ -1,20 +1,4 @@
-//! The final pass against every sample (docs/filter.md §2, F6a): an
-//! alternative to the paper's step 3 for offline use.
-//!
-//! The paper's replay stores only the samples it cannot accept yet, and its
-//! final pass judges each stored sample against the other stored ones.
-//! Samples accepted while streaming never count as neighbours again. A small
-//! consistent feature — a highlight one pixel wide — is first met by an
-//! empty neighbourhood, so its first k samples are stored, its later ones
-//! are accepted against those, and in the final pass each stored one sees
-//! fewer than k others of its kind and is rejected: the feature loses the
-//! samples it began with. Offline, the whole dump is at hand, so here a
-//! stored sample is judged against every valid sample but itself. The
-//! streaming decisions are the paper's; only the stored samples' final
-//! verdicts change, and never from accepted to rejected: T ∪ accepted ⊇ T,
-//! and a larger set can only lower σ.
-//!
-//! How, in memory proportional to T: the stored samples to judge are the
+//! F6a in memory proportional to T: the stored samples to judge are the
 //! queries. Each query's k nearest among all samples lie within its k-th
 //! nearest distance in T (T minus itself is part of every sample but
 //! itself), found by one exact search in a grid over T. The dump is then
@@ -23,33 +7,13 @@
 //! per query; their union's k smallest, the same whatever the split, give
 //! the canonical σ. Nothing is kept per sample of the dump.
 
-use std::time::Instant;
-
-use super::index::NeighbourIndex;
-use super::index::grid::Grid;
-use super::sigma::{Goal, KBest};
-use super::{Decision, ExactSigma, FilterResult};
+use crate::density::index::NeighbourIndex;
+use crate::density::index::grid::Grid;
+use crate::density::sigma::{Goal, KBest};
+use crate::density::{Decision, ExactSigma, FilterResult};
 use crate::dump::{Header, Record, Validity};
 use crate::joint::{JointSpace, dist2};
 use crate::par::prelude::*;
-
-/// Re-decides `result`'s stored samples against every valid sample but
-/// themselves; σ of those `exact` asks for is updated (`result` keeps σ
-/// when `exact` asks for any).
-pub fn final_pass_against_all(
-    records: &[Record],
-    header: &Header,
-    space: &JointSpace,
-    k: usize,
-    exact: ExactSigma,
-    result: &mut FilterResult,
-) {
-    if header.animated() {
-        against_all::<6>(records, header, space, k, exact, result)
-    } else {
-        against_all::<5>(records, header, space, k, exact, result)
-    }
-}
 
 /// Records per parallel job of the pass over the dump.
 const CHUNK: usize = 1 << 16;
@@ -58,7 +22,7 @@ const CHUNK: usize = 1 << 16;
 /// until it fits.
 const MAX_CELLS: usize = 1 << 20;
 
-fn against_all<const D: usize>(
+pub(super) fn against_all<const D: usize>(
     records: &[Record],
     header: &Header,
     space: &JointSpace,
@@ -66,7 +30,6 @@ fn against_all<const D: usize>(
     exact: ExactSigma,
     result: &mut FilterResult,
 ) {
-    let t = Instant::now();
     let extent = [
         header.width as f64 / space.sigma_image,
         header.height as f64 / space.sigma_image,
@@ -175,7 +138,6 @@ fn against_all<const D: usize>(
             counts.rejected += 1;
         }
     }
-    result.final_seconds += t.elapsed().as_secs_f64();
 }
 
 /// A stored sample to judge against every sample: its record, its point,
@@ -186,32 +148,52 @@ struct Query<const D: usize> {
     reach2: f64,
 }
 
-/// The queries listed by the cells of a grid over the first `axes`
-/// coordinates (x, y and, for animations, t) that their reach touches.
+/// The queries listed by the cells of a grid that they reach: over the
+/// image axes, time for animations, and the first colour axis (lightness),
+/// which separates a firefly from the samples around it.
 struct QueryCells {
-    axes: usize,
-    side: f64,
-    dims: [usize; 3],
+    /// The coordinates gridded: x, y (t), the first colour coordinate.
+    coords: Vec<usize>,
+    origin: [f64; 4],
+    side: [f64; 4],
+    dims: [usize; 4],
     lists: Vec<Vec<u32>>,
 }
 
 impl QueryCells {
     fn new<const D: usize>(extent: [f64; 3], axes: usize, queries: &[Query<D>]) -> QueryCells {
-        let mut side = 1.0f64;
-        let dims_for = |side: f64| {
-            let mut d = [1usize; 3];
-            for a in 0..axes {
-                d[a] = (extent[a] / side).ceil().clamp(1.0, 1e15) as usize;
+        let mut coords: Vec<usize> = (0..axes).collect();
+        coords.push(D - 3);
+        let n = coords.len();
+        let (mut origin, mut end) = ([0.0f64; 4], [0.0f64; 4]);
+        end[..axes].copy_from_slice(&extent[..axes]);
+        // The colour axis spans the queries' reach (a sample beyond it is
+        // clamped to the last cell, still beyond every reach).
+        let (lo, hi) = queries
+            .iter()
+            .map(|q| (q.p[D - 3] as f64, q.reach2.sqrt()))
+            .filter(|(_, r)| r.is_finite())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (v, r)| {
+                (lo.min(v - r), hi.max(v + r))
+            });
+        (origin[axes], end[axes]) = if lo < hi { (lo, hi) } else { (0.0, 1.0) };
+        let mut side = [1.0f64; 4];
+        let dims_for = |side: &[f64; 4]| {
+            let mut d = [1usize; 4];
+            for a in 0..n {
+                d[a] = ((end[a] - origin[a]) / side[a]).ceil().clamp(1.0, 1e15) as usize;
             }
             d
         };
-        let mut dims = dims_for(side);
-        while dims.iter().fold(1usize, |n, &x| n.saturating_mul(x)) > MAX_CELLS {
-            side *= 2.0;
-            dims = dims_for(side);
+        let mut dims = dims_for(&side);
+        while dims.iter().fold(1usize, |m, &x| m.saturating_mul(x)) > MAX_CELLS {
+            let a = (0..n).max_by_key(|&a| dims[a]).expect("an axis");
+            side[a] *= 2.0;
+            dims = dims_for(&side);
         }
         let mut cells = QueryCells {
-            axes,
+            coords,
+            origin,
             side,
             dims,
             lists: vec![Vec::new(); dims.iter().product()],
@@ -220,18 +202,19 @@ impl QueryCells {
             // One cell more on each side than the reach covers: a point in
             // any other cell is farther than the reach along some axis.
             let reach = query.reach2.sqrt();
-            let mut lo = [0usize; 3];
-            let mut hi = [0usize; 3];
-            for a in 0..axes {
-                let v = query.p[a] as f64;
+            let (mut lo, mut hi) = ([0usize; 4], [0usize; 4]);
+            for (a, &j) in cells.coords.iter().enumerate() {
+                let v = query.p[j] as f64;
                 lo[a] = cells.index(v - reach, a).saturating_sub(1);
                 hi[a] = (cells.index(v + reach, a) + 1).min(dims[a] - 1);
             }
-            for z in lo[2]..=hi[2] {
-                for y in lo[1]..=hi[1] {
-                    for x in lo[0]..=hi[0] {
-                        let c = (z * dims[1] + y) * dims[0] + x;
-                        cells.lists[c].push(q as u32);
+            for w in lo[3]..=hi[3] {
+                for z in lo[2]..=hi[2] {
+                    for y in lo[1]..=hi[1] {
+                        for x in lo[0]..=hi[0] {
+                            let c = ((w * dims[2] + z) * dims[1] + y) * dims[0] + x;
+                            cells.lists[c].push(q as u32);
+                        }
                     }
                 }
             }
@@ -239,9 +222,10 @@ impl QueryCells {
         cells
     }
 
-    /// The cell of coordinate `v` along axis `a`, clamped to the grid.
+    /// The cell of coordinate `v` along gridded axis `a`, clamped to the
+    /// grid.
     fn index(&self, v: f64, a: usize) -> usize {
-        let c = (v / self.side).floor();
+        let c = ((v - self.origin[a]) / self.side[a]).floor();
         if c.is_nan() || c <= 0.0 {
             0
         } else {
@@ -251,10 +235,11 @@ impl QueryCells {
 
     /// The queries listed in the cell of `p`.
     fn at<const D: usize>(&self, p: &[f32; D]) -> &[u32] {
-        let mut c = [0usize; 3];
-        for (a, ca) in c.iter_mut().enumerate().take(self.axes) {
-            *ca = self.index(p[a] as f64, a);
+        let mut c = [0usize; 4];
+        for (a, &j) in self.coords.iter().enumerate() {
+            c[a] = self.index(p[j] as f64, a);
         }
-        &self.lists[(c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]]
+        let d = &self.dims;
+        &self.lists[((c[3] * d[2] + c[2]) * d[1] + c[1]) * d[0] + c[0]]
     }
 }

@@ -1,0 +1,96 @@
+//! The final pass against every sample (docs/filter.md §2, F6a): an
+//! alternative to the paper's step 3 for offline use.
+//!
+//! The paper's replay stores only the samples it cannot accept yet, and its
+//! final pass judges each stored sample against the other stored ones.
+//! Samples accepted while streaming never count as neighbours again. A small
+//! consistent feature — a highlight one pixel wide — is first met by an
+//! empty neighbourhood, so its first k samples are stored, its later ones
+//! are accepted against those, and in the final pass each stored one sees
+//! fewer than k others of its kind and is rejected: the feature loses the
+//! samples it began with. Offline, the whole dump is at hand, so here a
+//! stored sample is judged against every valid sample but itself. The
+//! streaming decisions are the paper's; only the stored samples' final
+//! verdicts change, and never from accepted to rejected: T ∪ accepted ⊇ T,
+//! and a larger set can only lower σ.
+//!
+//! Two ways to find a stored sample's k nearest among every sample, with
+//! the same results: a grid over every valid sample ([`grid`]: fast, about
+//! 60 bytes a sample), or the stored samples as queries and the dump read
+//! past them once ([`streamed`]: memory proportional to T, slower when T
+//! is sparse or k large). [`AllSamples::for_dump`] picks the grid up to
+//! [`GRID_SAMPLES`] valid samples.
+
+mod grid;
+mod streamed;
+
+use super::{ExactSigma, FilterResult};
+use crate::dump::{Header, Record};
+use crate::joint::JointSpace;
+
+/// The largest dump (valid samples) whose final pass builds a grid over
+/// every sample: about 1 GB of it (docs/BENCHMARKS.md, "The default run").
+pub const GRID_SAMPLES: u64 = 1 << 24;
+
+/// How F6a finds a stored sample's k nearest among every sample.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AllSamples {
+    /// A grid over every valid sample.
+    Grid,
+    /// The stored samples as queries, the dump read past them once.
+    Streamed,
+}
+
+impl AllSamples {
+    /// The grid up to [`GRID_SAMPLES`] valid samples, streamed beyond.
+    pub fn for_dump(valid: u64) -> AllSamples {
+        if valid <= GRID_SAMPLES {
+            AllSamples::Grid
+        } else {
+            AllSamples::Streamed
+        }
+    }
+}
+
+/// Re-decides `result`'s stored samples against every valid sample but
+/// themselves; σ of those `exact` asks for is updated (`result` keeps σ
+/// when `exact` asks for any).
+pub fn final_pass_against_all(
+    records: &[Record],
+    header: &Header,
+    space: &JointSpace,
+    k: usize,
+    exact: ExactSigma,
+    result: &mut FilterResult,
+) {
+    let how = AllSamples::for_dump(result.counts.valid);
+    final_pass_against_all_with(records, header, space, k, exact, result, how)
+}
+
+/// [`final_pass_against_all`] the way `how` says.
+pub fn final_pass_against_all_with(
+    records: &[Record],
+    header: &Header,
+    space: &JointSpace,
+    k: usize,
+    exact: ExactSigma,
+    result: &mut FilterResult,
+    how: AllSamples,
+) {
+    let t = std::time::Instant::now();
+    match (how, header.animated()) {
+        (AllSamples::Grid, false) => {
+            grid::against_all::<5>(records, header, space, k, exact, result)
+        }
+        (AllSamples::Grid, true) => {
+            grid::against_all::<6>(records, header, space, k, exact, result)
+        }
+        (AllSamples::Streamed, false) => {
+            streamed::against_all::<5>(records, header, space, k, exact, result)
+        }
+        (AllSamples::Streamed, true) => {
+            streamed::against_all::<6>(records, header, space, k, exact, result)
+        }
+    }
+    result.final_seconds += t.elapsed().as_secs_f64();
+}
