@@ -15,8 +15,10 @@ use crate::dump::{Header, Record, Validity};
 use crate::joint::{JointSpace, dist2};
 use crate::par::prelude::*;
 
-/// Records per parallel job of the pass over the dump.
-const CHUNK: usize = 1 << 16;
+/// Parallel jobs of the pass over the dump, per thread: each keeps the k
+/// nearest of every query, so their number, not the dump's size, sets the
+/// memory of the pass.
+const JOBS_PER_THREAD: usize = 2;
 
 /// Upper limit on the cells of the grid of queries; the side doubles
 /// until it fits.
@@ -80,8 +82,10 @@ pub(super) fn against_all<const D: usize>(
     // found through a grid over the image (and time) axes where each query
     // is listed in every cell its reach touches.
     let cells = QueryCells::new(extent, D - 3, &queries);
+    let jobs = JOBS_PER_THREAD * crate::par::current_num_threads();
+    let per_job = records.len().div_ceil(jobs).max(1);
     let partial: Vec<Vec<KBest>> = records
-        .par_chunks(CHUNK)
+        .par_chunks(per_job)
         .enumerate()
         .map(|(c, chunk)| {
             let mut kbs = vec![KBest::new(k); queries.len()];
@@ -89,7 +93,7 @@ pub(super) fn against_all<const D: usize>(
                 if r.validity(header) != Validity::Valid {
                     continue;
                 }
-                let rec = c * CHUNK + j;
+                let rec = c * per_job + j;
                 let p = space.point::<D>(r);
                 for &q in cells.at(&p) {
                     let query = &queries[q as usize];
