@@ -220,12 +220,7 @@ pub fn run(
         batch: options.batch,
         deferral: options.deferral,
     };
-    let s = space;
-    let extent = [
-        header.width as f64 / s.sigma_image,
-        header.height as f64 / s.sigma_image,
-        header.frames as f64 / s.sigma_time,
-    ];
+    let extent = space.extent(header);
     match (header.animated(), index) {
         (false, IndexKind::Grid) => {
             schedule::replay::<5, _>(records, header, params, || Grid::new(extent), progress)

@@ -5,7 +5,7 @@ pub mod hdr;
 pub mod lab;
 pub mod white;
 
-use crate::dump::Record;
+use crate::dump::{Header, Record};
 
 /// The colour coordinates of the joint space (docs/filter.md §1).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -86,6 +86,16 @@ fn coord(v: f64) -> f32 {
 }
 
 impl JointSpace {
+    /// The film of `header` in joint units along x, y and t: where every
+    /// valid record's point lies (from 0), what the grids cover.
+    pub fn extent(&self, header: &Header) -> [f64; 3] {
+        [
+            header.width as f64 / self.sigma_image,
+            header.height as f64 / self.sigma_image,
+            header.frames as f64 / self.sigma_time,
+        ]
+    }
+
     /// The joint point of a valid record. `D` is 5 for a still (no time
     /// axis) and 6 for an animation.
     #[inline]

@@ -34,11 +34,7 @@ pub(super) fn against_all<const D: usize>(
     exact: ExactSigma,
     result: &mut FilterResult,
 ) {
-    let extent = [
-        header.width as f64 / space.sigma_image,
-        header.height as f64 / space.sigma_image,
-        header.frames as f64 / space.sigma_time,
-    ];
+    let extent = space.extent(header);
     let side = cell_side(extent, D - 3, result.counts.valid);
     let mut index = Grid::<D>::with_side(extent, side);
     // (record, its id in the index) of every stored sample.

@@ -32,11 +32,7 @@ pub(super) fn against_all<const D: usize>(
     exact: ExactSigma,
     result: &mut FilterResult,
 ) {
-    let extent = [
-        header.width as f64 / space.sigma_image,
-        header.height as f64 / space.sigma_image,
-        header.frames as f64 / space.sigma_time,
-    ];
+    let extent = space.extent(header);
     // T: the samples the paper's replay stored, which its final pass judged.
     let stored: Vec<usize> = (0..records.len())
         .filter(|&i| {
