@@ -231,8 +231,8 @@ impl FilterConfig {
         if !crate::imagespace::oidn::AVAILABLE {
             let why = "needs OIDN, and this build has none: build with `--features oidn` \
                        after `bash tools/oidn/setup.sh` (README, \"OIDN\")";
-            if self.methods.contains(Method::Oidn) {
-                return bad("methods", format!("oidn {why}"));
+            if let Some(m) = self.methods.iter().find(|m| m.needs_oidn()) {
+                return bad("methods", format!("{m} {why}"));
             }
             if self.denoise == Denoise::Oidn {
                 return bad("denoise", format!("oidn {why}"));

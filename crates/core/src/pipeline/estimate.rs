@@ -17,7 +17,7 @@ use crate::imagespace;
 use crate::recon::groups::PixelGroups;
 use crate::recon::mon::{self, MonImages};
 use crate::recon::robust::{self, RobustImages};
-use crate::recon::{Image, Reconstruction, clamp, energy, rwmc};
+use crate::recon::{Image, Reconstruction, clamp, confidence, energy, rwmc};
 
 /// The mean and filtered images and what the image-space methods need.
 pub struct Core {
@@ -77,6 +77,8 @@ pub struct Estimators<'s, 'a> {
     core: &'s Core,
     robust: OnceLock<(RobustImages, f64)>,
     mon: OnceLock<(MonImages, f64)>,
+    /// OIDN's image of the mean (`oidn`, and `oidn_ci` starts from it).
+    oidn_mean: OnceLock<Result<(Image, f64), String>>,
 }
 
 impl<'s, 'a> Estimators<'s, 'a> {
@@ -93,18 +95,40 @@ impl<'s, 'a> Estimators<'s, 'a> {
             core,
             robust: OnceLock::new(),
             mon: OnceLock::new(),
+            oidn_mean: OnceLock::new(),
         }
     }
 
     /// `method`'s image and the seconds it took from the dump. Only OIDN
     /// can fail (its library reports an error).
     pub fn image(&self, method: Method) -> Result<(Image, f64), String> {
-        if method == Method::Oidn {
-            let mean = &self.core.reconstruction.mean;
-            let (denoised, s) = self.oidn(mean)?;
-            return Ok((denoised, self.core.reconstruct_seconds + s));
+        match method {
+            Method::Oidn => self.oidn_mean().cloned(),
+            Method::OidnCi => {
+                let (denoised, s) = self.oidn_mean()?;
+                let (img, t) = timed(|| {
+                    let ci = confidence::interval(
+                        self.shared.records,
+                        self.shared.header,
+                        confidence::Z,
+                    );
+                    imagespace::oidn::bounded(denoised, &ci)
+                });
+                Ok((img, s + t))
+            }
+            _ => Ok(self.exact(method)),
         }
-        Ok(self.exact(method))
+    }
+
+    /// OIDN's image of the mean, made once, and the seconds from the dump.
+    fn oidn_mean(&self) -> Result<&(Image, f64), String> {
+        self.oidn_mean
+            .get_or_init(|| {
+                let (d, s) = self.oidn(&self.core.reconstruction.mean)?;
+                Ok((d, self.core.reconstruct_seconds + s))
+            })
+            .as_ref()
+            .map_err(Clone::clone)
     }
 
     /// `method`'s image denoised by OIDN (`METHOD+oidn`), and the seconds
@@ -154,7 +178,7 @@ impl<'s, 'a> Estimators<'s, 'a> {
             Method::Clamp => {
                 timed(|| clamp::clamped_mean(records, h, c.recon.filter(), c.clamp, &rec.occupancy))
             }
-            Method::Oidn => unreachable!("OIDN goes through Estimators::image"),
+            Method::Oidn | Method::OidnCi => unreachable!("OIDN goes through Estimators::image"),
             Method::FilteredEnergy => after(
                 filtered_s,
                 timed(|| {

@@ -39,10 +39,14 @@ pub enum Method {
     /// Intel Open Image Denoise's `RT` filter on the mean
     /// ([`crate::imagespace::oidn`]; only in builds with the `oidn` feature).
     Oidn,
+    /// OIDN's image of the mean held, per pixel and channel, inside the
+    /// confidence interval of the pixel's mean
+    /// ([`crate::recon::confidence`]; only with the `oidn` feature).
+    OidnCi,
 }
 
 impl Method {
-    pub const ALL: [Method; 13] = [
+    pub const ALL: [Method; 14] = [
         Method::Mean,
         Method::Filtered,
         Method::Median,
@@ -56,6 +60,7 @@ impl Method {
         Method::FilteredEnergy,
         Method::Clamp,
         Method::Oidn,
+        Method::OidnCi,
     ];
 
     pub fn name(self) -> &'static str {
@@ -73,7 +78,13 @@ impl Method {
             Method::FilteredEnergy => "filtered_energy",
             Method::Clamp => "clamp",
             Method::Oidn => "oidn",
+            Method::OidnCi => "oidn_ci",
         }
+    }
+
+    /// Whether the image needs OIDN (a build with the `oidn` feature).
+    pub fn needs_oidn(self) -> bool {
+        matches!(self, Method::Oidn | Method::OidnCi)
     }
 
     fn bit(self) -> u16 {
@@ -117,9 +128,17 @@ impl MethodSet {
     /// Mean and filtered.
     pub const CORE: MethodSet = MethodSet(1 << Method::Mean as u16 | 1 << Method::Filtered as u16);
     pub const ALL: MethodSet = MethodSet((1 << Method::ALL.len()) - 1);
-    /// What a run makes unless told otherwise: every method of the pure-Rust
-    /// build (OIDN is asked for by name, or with `denoise`).
-    pub const DEFAULT: MethodSet = MethodSet(MethodSet::ALL.0 & !(1 << Method::Oidn as u16));
+    /// What a run makes unless told otherwise: every method but plain
+    /// `oidn` (asked for by name, or with `denoise`), and `oidn_ci` only in
+    /// builds that have OIDN, where it is the recommended image.
+    pub const DEFAULT: MethodSet = {
+        let oidn_ci = if crate::imagespace::oidn::AVAILABLE {
+            0
+        } else {
+            1 << Method::OidnCi as u16
+        };
+        MethodSet(MethodSet::ALL.0 & !(1 << Method::Oidn as u16) & !oidn_ci)
+    };
 
     pub fn contains(self, m: Method) -> bool {
         self.0 & m.bit() != 0

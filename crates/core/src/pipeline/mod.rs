@@ -74,8 +74,11 @@ pub fn image_name(method: Method, denoised: bool) -> String {
 /// The image a user should use, in order of preference: the first of
 /// these a run made is its `recommended` image. Chosen by measurement
 /// (docs/RESULTS.md, "Which image to use").
-pub const RECOMMENDED: [(Method, bool); 2] =
-    [(Method::FilteredEnergy, false), (Method::Filtered, false)];
+pub const RECOMMENDED: [(Method, bool); 3] = [
+    (Method::OidnCi, false),
+    (Method::FilteredEnergy, false),
+    (Method::Filtered, false),
+];
 
 /// The name of the recommended image among `images`.
 pub fn recommended(images: &[MethodImage]) -> Option<String> {
@@ -87,7 +90,7 @@ pub fn recommended(images: &[MethodImage]) -> Option<String> {
 
 /// The images a configuration makes, in order: every selected method, and
 /// with `denoise` OIDN on each of them too (`oidn` is the mean's, so there
-/// is no `mean+oidn`).
+/// is no `mean+oidn`, and `oidn_ci` is denoised already).
 pub fn images_of(config: &FilterConfig) -> Vec<(Method, bool)> {
     let denoise = config.denoise == Denoise::Oidn;
     let methods = if denoise {
@@ -98,7 +101,7 @@ pub fn images_of(config: &FilterConfig) -> Vec<(Method, bool)> {
     let plain = methods.iter().map(|m| (m, false));
     let denoised = methods
         .iter()
-        .filter(move |&m| denoise && m != Method::Mean && m != Method::Oidn)
+        .filter(move |&m| denoise && m != Method::Mean && !m.needs_oidn())
         .map(|m| (m, true));
     plain.chain(denoised).collect()
 }

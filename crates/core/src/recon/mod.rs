@@ -3,6 +3,7 @@
 //! result does not depend on the thread count.
 
 pub mod clamp;
+pub mod confidence;
 pub mod energy;
 pub mod groups;
 pub mod median;

@@ -104,6 +104,7 @@ pub fn equal_time(
         ];
         if crate::imagespace::oidn::AVAILABLE {
             peers.push((Method::Oidn, "oidn".into()));
+            peers.push((Method::OidnCi, "oidn_ci".into()));
         }
         let peers = peers
             .into_iter()

@@ -233,7 +233,9 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
             });
             Ok(())
         };
-        let oidn = crate::imagespace::oidn::AVAILABLE.then_some(Method::Oidn);
+        let oidn = [Method::Oidn, Method::OidnCi]
+            .into_iter()
+            .filter(|_| crate::imagespace::oidn::AVAILABLE);
         for m in [
             Method::Mean,
             Method::Median,

@@ -1,0 +1,245 @@
+//! Per pixel and channel, where the pixel's true value may lie given its
+//! samples: the confidence interval x̄ ± z·s/√n of the Monte Carlo mean
+//! (docs/filter.md §3, "oidn_ci"). It bounds what a denoiser may do to a
+//! pixel: OIDN blurs a small light's energy into its neighbours, and a
+//! neighbour whose samples agree among themselves has a narrow interval
+//! that says so.
+//!
+//! The variance s² of a pixel is the larger of its own unbiased sample
+//! variance and the mean variance of the compatible pixels of its 3 × 3
+//! neighbourhood: same frame, two samples or more, and a mean within
+//! z·(SEₚ + SE_q) of the pixel's, SE from each pixel's own samples (per
+//! channel). A pixel whose few samples happened to miss a rare, bright
+//! path has a small own variance, and its neighbours' say how wide the
+//! distribution really is; a light's pixels, whose samples all agree, do
+//! not take the variance of the wall beside them, whose mean no interval
+//! of theirs overlaps.
+//!
+//! The moments are accumulated per pixel with Welford's update in file
+//! order, in f64: exact for any thread count, and with no cancellation
+//! when a pixel's samples are large and nearly equal (a light's 60 ± 10⁻⁶).
+
+use super::Image;
+use crate::dump::{Header, Record, Validity};
+
+/// z of the interval: three standard errors.
+pub const Z: f64 = 3.0;
+
+/// Per pixel and channel, the interval `centre ± half_width`.
+pub struct Interval {
+    /// The per-pixel sample mean (box weights whatever the reconstruction
+    /// filter); 0 where a pixel has no valid sample.
+    pub centre: Image,
+    /// z·s/√n; 0 where a pixel has no valid sample, +∞ where it has one
+    /// and no compatible neighbour has two (at 1 spp the interval bounds
+    /// nothing).
+    pub half_width: Image,
+}
+
+impl Interval {
+    /// `v` held inside pixel `px`'s interval, channel by channel.
+    #[inline]
+    pub fn clamp(&self, px: usize, v: [f64; 3]) -> [f64; 3] {
+        let (c, h) = (self.centre.data[px], self.half_width.data[px]);
+        std::array::from_fn(|i| v[i].clamp(c[i] - h[i], c[i] + h[i]))
+    }
+}
+
+/// Running moments of one pixel (Welford).
+#[derive(Clone, Copy, Default)]
+struct Moments {
+    n: u32,
+    mean: [f64; 3],
+    /// Σ (x − x̄)², per channel.
+    m2: [f64; 3],
+}
+
+impl Moments {
+    fn add(&mut self, x: [f64; 3]) {
+        self.n += 1;
+        let n = self.n as f64;
+        for c in 0..3 {
+            let d = x[c] - self.mean[c];
+            self.mean[c] += d / n;
+            self.m2[c] += d * (x[c] - self.mean[c]);
+        }
+    }
+
+    /// The unbiased sample variance, for two samples or more.
+    fn variance(&self) -> Option<[f64; 3]> {
+        (self.n >= 2).then(|| self.m2.map(|m| m / (self.n - 1) as f64))
+    }
+}
+
+/// The confidence interval of every pixel's mean, at `z` standard errors.
+pub fn interval(records: &[Record], h: &Header, z: f64) -> Interval {
+    let (w, ht) = (h.width as usize, h.height as usize);
+    let mut moments = vec![Moments::default(); h.pixels() * h.frames as usize];
+    for r in records {
+        if r.validity(h) == Validity::Valid {
+            moments[r.pixel_index(h)].add([r.r as f64, r.g as f64, r.b as f64]);
+        }
+    }
+    // The standard error of each pixel's mean from its own samples alone.
+    let own_se: Vec<[f64; 3]> = moments
+        .iter()
+        .map(|m| match m.variance() {
+            Some(v) => v.map(|v| (v / m.n as f64).sqrt()),
+            None => [0.0; 3],
+        })
+        .collect();
+    let mut centre = Image::for_header(h);
+    let mut half_width = Image::for_header(h);
+    for (px, m) in moments.iter().enumerate() {
+        if m.n == 0 {
+            continue;
+        }
+        let (frame, i) = (px / (w * ht), px % (w * ht));
+        let (x, y) = (i % w, i / w);
+        let mut pooled = [0.0; 3];
+        let mut count = [0.0; 3];
+        for ny in y.saturating_sub(1)..(y + 2).min(ht) {
+            for nx in x.saturating_sub(1)..(x + 2).min(w) {
+                let q = frame * w * ht + ny * w + nx;
+                let Some(v) = moments[q].variance() else {
+                    continue;
+                };
+                for c in 0..3 {
+                    let gap = (moments[q].mean[c] - m.mean[c]).abs();
+                    if gap <= z * (own_se[q][c] + own_se[px][c]) {
+                        pooled[c] += v[c];
+                        count[c] += 1.0;
+                    }
+                }
+            }
+        }
+        let own = m.variance();
+        centre.data[px] = m.mean;
+        half_width.data[px] = std::array::from_fn(|c| {
+            let s2 = match (own, count[c] > 0.0) {
+                (Some(own), true) => own[c].max(pooled[c] / count[c]),
+                (None, true) => pooled[c] / count[c],
+                (Some(own), false) => own[c],
+                // Nothing says how wide: no bound.
+                (None, false) => f64::INFINITY,
+            };
+            z * (s2 / m.n as f64).sqrt()
+        });
+    }
+    Interval { centre, half_width }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dump::Order;
+
+    fn header(w: u32, h: u32) -> Header {
+        Header {
+            width: w,
+            height: h,
+            frames: 1,
+            spp: 0,
+            sample_count: 0,
+            order: Order::Unspecified,
+            scene: String::new(),
+            seed: 0,
+            producer: String::new(),
+        }
+    }
+
+    fn rec(x: f32, y: f32, v: [f32; 3]) -> Record {
+        Record::new(x, y, 0.0, v)
+    }
+
+    /// Against the two-pass formula by hand on a 3 × 1 film: the middle
+    /// pixel's own variance is below its compatible neighbours' mean, the
+    /// left one's above it; the right pixel has one sample and a mean no
+    /// neighbour's interval reaches, so nothing bounds it.
+    #[test]
+    fn interval_by_hand() {
+        let h = header(3, 1);
+        let records = [
+            rec(0.5, 0.5, [1.0, 0.0, 0.0]),
+            rec(0.5, 0.5, [5.0, 0.0, 0.0]),
+            rec(1.5, 0.5, [2.0, 2.0, 2.0]),
+            rec(1.5, 0.5, [2.0, 2.0, 2.0]),
+            rec(1.5, 0.5, [3.0, 2.0, 2.0]),
+            rec(2.5, 0.5, [7.0, 0.0, 0.0]),
+            rec(f32::NAN, 0.5, [1e9, 0.0, 0.0]),
+        ];
+        let ci = interval(&records, &h, 2.0);
+        // Pixel 0: mean 3, s² = 8, SE 2; pixel 1: mean 7/3, s² = 1/3, SE 1/3.
+        // |3 − 7/3| ≤ 2 (2 + 1/3): compatible, pooled s² = (8 + 1/3) / 2.
+        assert_eq!(ci.centre.data[0], [3.0, 0.0, 0.0]);
+        assert!((ci.half_width.data[0][0] - 2.0 * (8.0f64 / 2.0).sqrt()).abs() < 1e-12);
+        let pooled = (8.0 + 1.0 / 3.0) / 2.0;
+        assert!((ci.centre.data[1][0] - 7.0 / 3.0).abs() < 1e-12);
+        assert!((ci.half_width.data[1][0] - 2.0 * (pooled / 3.0f64).sqrt()).abs() < 1e-12);
+        // Green: pixel 0's 0 lies 2 from pixel 1's 2, beyond 2 (0 + 0); pixel
+        // 1 keeps its own s² = 0.
+        assert_eq!(ci.half_width.data[1][1], 0.0);
+        // Pixel 2: one sample at 7, beyond 2 · (1/3 + 0) of pixel 1's mean.
+        assert_eq!(ci.centre.data[2], [7.0, 0.0, 0.0]);
+        assert_eq!(ci.half_width.data[2][0], f64::INFINITY);
+        assert_eq!(ci.clamp(2, [9.0, 1.0, 2.5]), [9.0, 1.0, 2.5]);
+        assert_eq!(
+            ci.clamp(1, [9.0, 1.0, 2.5]),
+            [7.0 / 3.0 + 2.0 * (pooled / 3.0f64).sqrt(), 2.0, 2.0]
+        );
+    }
+
+    /// A light's pixels, whose samples agree, keep a zero-width interval
+    /// beside a noisy wall; a pixel whose samples missed a rare bright
+    /// path takes its compatible neighbours' variance.
+    #[test]
+    fn pooling_only_over_compatible_neighbours() {
+        let h = header(3, 1);
+        let mut records = Vec::new();
+        for i in 0..16 {
+            records.push(rec(0.5, 0.5, [10.0; 3]));
+            let wall = if i % 4 == 0 { 4.0 } else { 0.0 };
+            records.push(rec(1.5, 0.5, [wall; 3]));
+            records.push(rec(2.5, 0.5, [if i == 0 { 0.3 } else { 0.2 }; 3]));
+        }
+        let ci = interval(&records, &h, Z);
+        assert_eq!(ci.half_width.data[0], [0.0; 3]);
+        // The wall (mean 1, s² = 3.2, SE ≈ 0.45) and the dim pixel (mean
+        // 0.20625, SE 0.00625): |1 − 0.20625| ≤ 3 (0.45 + 0.006), so the dim
+        // pixel takes the mean of its own and the wall's s².
+        let wall_s2 = 16.0 * 4.0 * 0.75 / 15.0 * 1.0;
+        let dim_s2 = (0.01f64 * 15.0 / 16.0) / 15.0;
+        let want = Z * ((wall_s2 + dim_s2) / 2.0 / 16.0f64).sqrt();
+        // (0.2 and 0.3 are f32 in a record.)
+        assert!(
+            (ci.half_width.data[2][0] - want).abs() < 1e-7,
+            "{:?}",
+            ci.half_width.data[2]
+        );
+    }
+
+    /// Large, nearly equal samples: Welford keeps the variance that a
+    /// one-pass Σx² − (Σx)²/n would lose to cancellation.
+    #[test]
+    fn no_cancellation_at_large_values() {
+        let h = header(1, 1);
+        let v = [1.0e7f32, 1.0e7 + 1.0, 1.0e7 + 2.0];
+        let records: Vec<Record> = v.iter().map(|&v| rec(0.5, 0.5, [v; 3])).collect();
+        let ci = interval(&records, &h, 1.0);
+        // s² = 1, n = 3.
+        assert!((ci.half_width.data[0][0] - (1.0f64 / 3.0).sqrt()).abs() < 1e-9);
+        assert_eq!(ci.centre.data[0][0], 1.0e7 + 1.0);
+    }
+
+    #[test]
+    fn empty_pixels_have_an_empty_interval() {
+        let h = header(2, 2);
+        let ci = interval(&[rec(0.5, 0.5, [1.0; 3])], &h, Z);
+        // One sample, no neighbour with two: unbounded.
+        assert_eq!(ci.half_width.data[0], [f64::INFINITY; 3]);
+        assert_eq!(ci.clamp(0, [4.0, 1.0, -1.0]), [4.0, 1.0, -1.0]);
+        assert_eq!(ci.centre.data[3], [0.0; 3]);
+        assert_eq!(ci.half_width.data[3], [0.0; 3]);
+        assert_eq!(ci.clamp(3, [4.0, 1.0, -1.0]), [0.0; 3]);
+    }
+}
