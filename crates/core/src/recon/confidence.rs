@@ -58,10 +58,10 @@ impl Moments {
     fn add(&mut self, x: [f64; 3]) {
         self.n += 1;
         let n = self.n as f64;
-        for c in 0..3 {
-            let d = x[c] - self.mean[c];
-            self.mean[c] += d / n;
-            self.m2[c] += d * (x[c] - self.mean[c]);
+        for ((x, mean), m2) in x.into_iter().zip(&mut self.mean).zip(&mut self.m2) {
+            let d = x - *mean;
+            *mean += d / n;
+            *m2 += d * (x - *mean);
         }
     }
 
