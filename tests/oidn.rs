@@ -133,7 +133,7 @@ fn oidn_images_equal_the_reference_librarys_and_runs_repeat() {
                 "-o",
                 s(out),
                 "--methods",
-                "clamp,oidn",
+                "clamp,oidn,oidn_ci",
                 "--denoise",
                 "oidn",
                 "--no-html",
@@ -146,9 +146,13 @@ fn oidn_images_equal_the_reference_librarys_and_runs_repeat() {
     };
     let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
     let table = run(&a, "2");
-    for name in ["oidn", "filtered+oidn", "clamp+oidn"] {
+    for name in ["oidn", "filtered+oidn", "clamp+oidn", "oidn_ci"] {
         assert!(table.contains(name), "{name} is missing from\n{table}");
     }
+    assert!(
+        !a.join("oidn_ci+oidn.exr").exists(),
+        "oidn_ci is denoised already"
+    );
     assert!(
         !a.join("mean+oidn.exr").exists(),
         "mean+oidn duplicates oidn"
@@ -172,14 +176,75 @@ fn oidn_images_equal_the_reference_librarys_and_runs_repeat() {
         );
         assert!(got.iter().flatten().any(|&v| v > 0.0), "{output} is black");
     }
+    // oidn_ci is OIDN's image moved towards each pixel's mean, never past
+    // it, and the light's pixels (whose samples agree) are moved.
+    let read = |name: &str| exr::read_rgb(&a.join(format!("{name}.exr"))).unwrap().2;
+    let (mean, oidn, ci) = (read("mean"), read("oidn"), read("oidn_ci"));
+    let (mut moved, mut err_oidn, mut err_ci) = (0, 0.0, 0.0);
+    for ((m, o), c) in mean
+        .iter()
+        .flatten()
+        .zip(oidn.iter().flatten())
+        .zip(ci.iter().flatten())
+    {
+        let (lo, hi) = (o.min(*m), o.max(*m));
+        assert!(
+            (lo - 1e-6..=hi + 1e-6).contains(c),
+            "oidn_ci {c} outside [{lo}, {hi}]"
+        );
+        moved += usize::from(c != o);
+        err_oidn += (o - m).abs();
+        err_ci += (c - m).abs();
+    }
+    assert!(
+        moved > 0 && err_ci < err_oidn,
+        "oidn_ci moved {moved} channels"
+    );
     run(&b, "1");
-    for name in ["oidn", "filtered+oidn", "clamp+oidn"] {
+    for name in ["oidn", "filtered+oidn", "clamp+oidn", "oidn_ci"] {
         let file = format!("{name}.exr");
         assert!(
             std::fs::read(a.join(&file)).unwrap() == std::fs::read(b.join(&file)).unwrap(),
             "{file} differs between runs"
         );
     }
+}
+
+/// In a build with OIDN the default run makes oidn_ci and recommends it:
+/// first row of the table, `"recommended"` in report.json.
+#[test]
+fn oidn_builds_recommend_oidn_ci() {
+    let Some((_, dir)) = oidn() else { return };
+    cargo(&dir, &["build", "--bin", "pathdensity"]);
+    let bin = Path::new(ROOT).join("target/oidn/release/pathdensity");
+    let tmp = tempfile::tempdir().unwrap();
+    let dump = tmp.path().join("s.pds");
+    let synth = Command::new(env!("CARGO_BIN_EXE_pathdensity"))
+        .args(["synth", "-o", s(&dump), "--width", "24", "--height", "20"])
+        .args(["--spp", "8", "--light", "5,6,2,40"])
+        .status()
+        .unwrap();
+    assert!(synth.success());
+    let out = tmp.path().join("o");
+    let o = Command::new(&bin)
+        .args(["filter", s(&dump), "-o", s(&out), "--no-html"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let table = String::from_utf8_lossy(&o.stdout);
+    let first = table
+        .lines()
+        .skip_while(|l| !l.trim_start().starts_with("image"))
+        .nth(1)
+        .unwrap_or_else(|| panic!("no table in\n{table}"));
+    assert!(first.contains("oidn_ci (use)"), "{table}");
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["recommended"], "oidn_ci");
+    assert!(
+        !out.join("oidn.exr").exists(),
+        "plain oidn is not a default"
+    );
 }
 
 #[test]
@@ -204,7 +269,11 @@ fn the_default_build_refuses_oidn_in_one_line() {
             .unwrap()
             .success()
     );
-    for args in [["--methods", "oidn"], ["--denoise", "oidn"]] {
+    for args in [
+        ["--methods", "oidn"],
+        ["--methods", "oidn_ci"],
+        ["--denoise", "oidn"],
+    ] {
         let o = Command::new(bin)
             .args(["filter", s(&dump), "-o", s(&tmp.path().join("o"))])
             .args(args)
