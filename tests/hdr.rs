@@ -291,3 +291,57 @@ fn the_final_pass_against_all_merges_its_jobs_exactly() {
         want.counts
     );
 }
+
+/// The pure-Rust build's recommended image (README, "Which image to use")
+/// keeps the highlight and loses the fireflies too: the highlight pixel
+/// within 10 % of its samples' mean, every firefly pixel nearer its own
+/// background than the mean is, at every exposure with the default
+/// `white = auto`.
+#[test]
+fn the_recommended_image_keeps_the_highlight_and_drops_the_fireflies() {
+    use pathdensity::config::Method;
+    let pixel = |r: &Record| r.y as usize * W as usize + r.x as usize;
+    for exposure in [0.01, 1.0, 100.0] {
+        let (h, recs, hl, ff) = highlight_and_fireflies(exposure);
+        let config = FilterConfig::DEFAULT;
+        let run = pipeline::run(
+            &recs,
+            &h,
+            &config,
+            &pipeline::RunOptions {
+                threads: 2,
+                exact_sigma: ExactSigma::None,
+                reference: None,
+                progress: &Silent,
+            },
+        )
+        .unwrap();
+        assert_eq!(
+            pipeline::recommended(&run.images).as_deref(),
+            Some(Method::FilteredEnergyBilateralCi.name())
+        );
+        let img = run.image(Method::FilteredEnergyBilateralCi).unwrap();
+        let mean = run.image(Method::Mean).unwrap();
+        let blue = |i: usize| img.data[i][2];
+        let hp = pixel(&recs[hl[0]]);
+        let kept = blue(hp) / mean.data[hp][2];
+        assert!((kept - 1.0).abs() <= 0.1, "×{exposure}: highlight {kept}");
+        for &f in &ff {
+            let p = pixel(&recs[f]);
+            // The pixel's other samples, without the firefly.
+            let others: Vec<f64> = recs
+                .iter()
+                .enumerate()
+                .filter(|&(i, r)| i != f && pixel(r) == p)
+                .map(|(_, r)| r.b as f64)
+                .collect();
+            let background = others.iter().sum::<f64>() / others.len() as f64;
+            assert!(
+                (blue(p) - background).abs() < 0.5 * (mean.data[p][2] - background).abs(),
+                "×{exposure}: firefly pixel {p} at {} (background {background}, mean {})",
+                blue(p),
+                mean.data[p][2]
+            );
+        }
+    }
+}

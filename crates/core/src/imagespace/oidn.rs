@@ -12,19 +12,6 @@
 //! image (docs/filter.md §3).
 
 use crate::recon::Image;
-use crate::recon::confidence::Interval;
-
-/// `denoised` held inside each pixel's confidence interval, channel by
-/// channel (the `oidn_ci` image): where OIDN moved a pixel farther from
-/// its samples' mean than z standard errors, it is moved back to the
-/// interval's edge. Pixels with no sample stay 0.
-pub fn bounded(denoised: &Image, ci: &Interval) -> Image {
-    let mut out = denoised.clone();
-    for (px, v) in out.data.iter_mut().enumerate() {
-        *v = ci.clamp(px, *v);
-    }
-    out
-}
 
 /// Whether this build can run OIDN.
 pub const AVAILABLE: bool = cfg!(feature = "oidn");

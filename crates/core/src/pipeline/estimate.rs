@@ -14,10 +14,11 @@ use super::methods::Method;
 use crate::config::FilterConfig;
 use crate::dump::{Header, Record};
 use crate::imagespace;
+use crate::recon::confidence::{self, Interval};
 use crate::recon::groups::PixelGroups;
 use crate::recon::mon::{self, MonImages};
 use crate::recon::robust::{self, RobustImages};
-use crate::recon::{Image, Reconstruction, clamp, confidence, energy, rwmc};
+use crate::recon::{Image, Reconstruction, clamp, energy, rwmc};
 
 /// The mean and filtered images and what the image-space methods need.
 pub struct Core {
@@ -79,6 +80,8 @@ pub struct Estimators<'s, 'a> {
     mon: OnceLock<(MonImages, f64)>,
     /// OIDN's image of the mean (`oidn`, and `oidn_ci` starts from it).
     oidn_mean: OnceLock<Result<(Image, f64), String>>,
+    /// Every pixel's confidence interval (the `_ci` methods).
+    interval: OnceLock<(Interval, f64)>,
 }
 
 impl<'s, 'a> Estimators<'s, 'a> {
@@ -96,6 +99,7 @@ impl<'s, 'a> Estimators<'s, 'a> {
             robust: OnceLock::new(),
             mon: OnceLock::new(),
             oidn_mean: OnceLock::new(),
+            interval: OnceLock::new(),
         }
     }
 
@@ -106,18 +110,20 @@ impl<'s, 'a> Estimators<'s, 'a> {
             Method::Oidn => self.oidn_mean().cloned(),
             Method::OidnCi => {
                 let (denoised, s) = self.oidn_mean()?;
-                let (img, t) = timed(|| {
-                    let ci = confidence::interval(
-                        self.shared.records,
-                        self.shared.header,
-                        confidence::Z,
-                    );
-                    imagespace::oidn::bounded(denoised, &ci)
-                });
-                Ok((img, s + t))
+                Ok(self.bounded(denoised, *s))
             }
             _ => Ok(self.exact(method)),
         }
+    }
+
+    /// `img` (made in `seconds`) held inside every pixel's confidence
+    /// interval, and the seconds from the dump.
+    fn bounded(&self, img: &Image, seconds: f64) -> (Image, f64) {
+        let (ci, ci_s) = self.interval.get_or_init(|| {
+            timed(|| confidence::interval(self.shared.records, self.shared.header, confidence::Z))
+        });
+        let (out, t) = timed(|| ci.bound(img));
+        (out, seconds + ci_s + t)
     }
 
     /// OIDN's image of the mean, made once, and the seconds from the dump.
@@ -177,6 +183,12 @@ impl<'s, 'a> Estimators<'s, 'a> {
             Method::Rwmc => timed(|| rwmc::rwmc(records, h, &c.rwmc())),
             Method::Clamp => {
                 timed(|| clamp::clamped_mean(records, h, c.recon.filter(), c.clamp, &rec.occupancy))
+            }
+            Method::FilteredEnergyBilateralCi => {
+                let (fe, fe_s) = self.exact(Method::FilteredEnergy);
+                let (smoothed, t) =
+                    timed(|| imagespace::bilateral(&fe, &rec.occupancy, c.bilateral(), self.white));
+                self.bounded(&smoothed, fe_s + t)
             }
             Method::Oidn | Method::OidnCi => unreachable!("OIDN goes through Estimators::image"),
             Method::FilteredEnergy => after(

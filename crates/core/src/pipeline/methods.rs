@@ -36,6 +36,11 @@ pub enum Method {
     /// Every sample clamped to a largest component of C, then the mean
     /// (pbrt-v4's `maxcomponentvalue`; [`crate::recon::clamp`]).
     Clamp,
+    /// filtered_energy, then the bilateral filter, held per pixel and
+    /// channel inside the confidence interval of the pixel's mean
+    /// ([`crate::recon::confidence`]): the pure-Rust build's recommended
+    /// image.
+    FilteredEnergyBilateralCi,
     /// Intel Open Image Denoise's `RT` filter on the mean
     /// ([`crate::imagespace::oidn`]; only in builds with the `oidn` feature).
     Oidn,
@@ -46,7 +51,7 @@ pub enum Method {
 }
 
 impl Method {
-    pub const ALL: [Method; 14] = [
+    pub const ALL: [Method; 15] = [
         Method::Mean,
         Method::Filtered,
         Method::Median,
@@ -59,6 +64,7 @@ impl Method {
         Method::Rwmc,
         Method::FilteredEnergy,
         Method::Clamp,
+        Method::FilteredEnergyBilateralCi,
         Method::Oidn,
         Method::OidnCi,
     ];
@@ -77,6 +83,7 @@ impl Method {
             Method::Rwmc => "rwmc",
             Method::FilteredEnergy => "filtered_energy",
             Method::Clamp => "clamp",
+            Method::FilteredEnergyBilateralCi => "filtered_energy_bilateral_ci",
             Method::Oidn => "oidn",
             Method::OidnCi => "oidn_ci",
         }

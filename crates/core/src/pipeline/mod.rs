@@ -74,8 +74,9 @@ pub fn image_name(method: Method, denoised: bool) -> String {
 /// The image a user should use, in order of preference: the first of
 /// these a run made is its `recommended` image. Chosen by measurement
 /// (docs/RESULTS.md, "Which image to use").
-pub const RECOMMENDED: [(Method, bool); 3] = [
+pub const RECOMMENDED: [(Method, bool); 4] = [
     (Method::OidnCi, false),
+    (Method::FilteredEnergyBilateralCi, false),
     (Method::FilteredEnergy, false),
     (Method::Filtered, false),
 ];

@@ -1,9 +1,9 @@
 //! Per pixel and channel, where the pixel's true value may lie given its
 //! samples: the confidence interval x̄ ± z·s/√n of the Monte Carlo mean
-//! (docs/filter.md §3, "oidn_ci"). It bounds what a denoiser may do to a
-//! pixel: OIDN blurs a small light's energy into its neighbours, and a
-//! neighbour whose samples agree among themselves has a narrow interval
-//! that says so.
+//! (docs/filter.md §3, the `_ci` methods). It bounds what an image-space
+//! filter may do to a pixel: OIDN or a bilateral filter blurs a small
+//! light's energy into its neighbours, and a neighbour whose samples agree
+//! among themselves has a narrow interval that says so.
 //!
 //! The variance s² of a pixel is the larger of its own unbiased sample
 //! variance and the mean variance of the compatible pixels of its 3 × 3
@@ -42,6 +42,18 @@ impl Interval {
     pub fn clamp(&self, px: usize, v: [f64; 3]) -> [f64; 3] {
         let (c, h) = (self.centre.data[px], self.half_width.data[px]);
         std::array::from_fn(|i| v[i].clamp(c[i] - h[i], c[i] + h[i]))
+    }
+
+    /// `img` (an image-space method's output) held inside every pixel's
+    /// interval: where the method moved a pixel farther from its samples'
+    /// mean than z standard errors, it goes back to the interval's edge.
+    /// Pixels with no sample become 0.
+    pub fn bound(&self, img: &Image) -> Image {
+        let mut out = img.clone();
+        for (px, v) in out.data.iter_mut().enumerate() {
+            *v = self.clamp(px, *v);
+        }
+        out
     }
 }
 
