@@ -2,7 +2,8 @@
 # OIDN and clamping against the filter (issue 20), on every scene of our
 # renderer and the Mitsuba exporter's scenes, at SPPS (default "16 64") spp,
 # SIZE² (default 128) pixels: mean, filtered, filtered_energy, clamp at each
-# of CLAMPS (default "3 10 30"), oidn, oidn_ci, and METHOD+oidn for each. Needs the
+# of CLAMPS (default "3 10 30"), oidn, the two recommended images
+# (oidn_ci, filtered_energy_bilateral_ci), and METHOD+oidn for each. Needs the
 # OIDN build (bash tools/oidn/setup.sh; this script builds target/oidn) and
 # Mitsuba (bash tools/mitsuba/setup.sh). Writes OUT/oidn.csv (default
 # out/oidn) and prints a markdown table per spp.
@@ -32,7 +33,7 @@ measure() { # renderer scene spp dump ref
     for c in $clamps; do
         mkdir -p "$d/c$c"
         local methods=clamp,oidn
-        [ $first = 1 ] && methods=filtered_energy,clamp,oidn,oidn_ci
+        [ $first = 1 ] && methods=filtered_energy,filtered_energy_bilateral_ci,clamp,oidn,oidn_ci
         $pd filter "$4" -o "$d/c$c" --reference "$5" --methods "$methods" --denoise oidn \
             --clamp "$c" --no-html --threads "$threads" > /dev/null
         python3 - "$d/c$c/report.json" "$1" "$2" "$3" "$c" "$first" >> "$csv" <<'PY'
@@ -109,22 +110,27 @@ for spp in sorted({k[2] for k in by}, key=int):
         b = by[k]
         print(f"| {k[0]}:{k[1]} | {float(b['mean']['rms']):.4f} | {float(b['mean']['rms_display']):.4f} | "
               f"{float(b['oidn']['seconds']):.3f} | {float(b['filtered']['seconds']):.3f} | {float(b['filtered+oidn']['seconds']):.3f} |")
-print("\n### The recommended pipeline: oidn_ci against oidn (linear RMS / RMS_display ratios)\n")
-print("| dump | oidn_ci / oidn | oidn_ci / mean | filtered_energy / oidn |")
-print("|---|---|---|---|")
+print("\n### The recommended images, linear RMS / RMS_display relative to the mean's (energy)\n")
+print("| dump | oidn | oidn_ci | filtered_energy | filtered_energy_bilateral_ci | oidn_ci / oidn |")
+print("|---|---|---|---|---|---|")
 import math
-lin, disp = [], []
+g = lambda v: math.exp(sum(map(math.log, v)) / len(v))
+ratios = defaultdict(lambda: ([], []))
 for k in by:
     b = by[k]
     if "oidn_ci" not in b:
         continue
     q = lambda a, c, f: float(b[a][f]) / float(b[c][f])
-    lin.append(q("oidn_ci", "oidn", "rms")); disp.append(q("oidn_ci", "oidn", "rms_display"))
-    print(f"| {k[0]}:{k[1]} {k[2]} spp | {lin[-1]:.3f} / {disp[-1]:.3f} | "
-          f"{q('oidn_ci', 'mean', 'rms'):.2f} / {q('oidn_ci', 'mean', 'rms_display'):.2f} | "
-          f"{q('filtered_energy', 'oidn', 'rms'):.2f} / {q('filtered_energy', 'oidn', 'rms_display'):.2f} |")
-if lin:
-    g = lambda v: math.exp(sum(map(math.log, v)) / len(v))
-    print(f"\noidn_ci / oidn over {len(lin)} dumps: linear geometric mean {g(lin):.3f}, worst {max(lin):.3f}; "
-          f"display geometric mean {g(disp):.3f}, worst {max(disp):.3f}")
+    cells = []
+    for m in ("oidn", "oidn_ci", "filtered_energy", "filtered_energy_bilateral_ci"):
+        lin, disp = q(m, "mean", "rms"), q(m, "mean", "rms_display")
+        ratios[m][0].append(lin); ratios[m][1].append(disp)
+        cells.append(f"{lin:.2f} / {disp:.2f} ({float(b[m]['energy']):.3f})")
+    lin, disp = q("oidn_ci", "oidn", "rms"), q("oidn_ci", "oidn", "rms_display")
+    ratios["oidn_ci / oidn"][0].append(lin); ratios["oidn_ci / oidn"][1].append(disp)
+    print(f"| {k[0]}:{k[1]} {k[2]} spp | " + " | ".join(cells) + f" | {lin:.3f} / {disp:.3f} |")
+print()
+for m, (lin, disp) in ratios.items():
+    print(f"{m}: linear geometric mean {g(lin):.3f}, worst {max(lin):.3f}; "
+          f"display geometric mean {g(disp):.3f}, worst {max(disp):.3f} ({len(lin)} dumps)")
 PY
