@@ -116,6 +116,20 @@ impl JointSpace {
         }
         p
     }
+
+    /// [`JointSpace::point`]'s image (and time) coordinates, the colour
+    /// ones left 0: what an index over the image axes needs, without the
+    /// colour transform.
+    #[inline]
+    pub fn image_point<const D: usize>(&self, r: &Record) -> [f32; D] {
+        let mut p = [0f32; D];
+        p[0] = coord(r.x as f64 / self.sigma_image);
+        p[1] = coord(r.y as f64 / self.sigma_image);
+        if D == 6 {
+            p[2] = coord(r.t as f64 / self.sigma_time);
+        }
+        p
+    }
 }
 
 /// The canonical joint distance: computed in f64 from the f32 coordinates,

@@ -37,12 +37,23 @@ pub(super) fn against_all<const D: usize>(
     let extent = space.extent(header);
     let side = cell_side(extent, D - 3, result.counts.valid);
     let mut index = Grid::<D>::with_side(extent, side);
+    // Each cell's list sized exactly and no second copy of the points:
+    // the grid is built once and only searched (about 24 bytes a sample).
+    let valid = || {
+        records
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| r.validity(header) == Validity::Valid)
+    };
+    let mut counts = vec![0u32; index.cell_count()];
+    for (_, r) in valid() {
+        counts[index.cell(&space.image_point::<D>(r))] += 1;
+    }
+    index.reserve(&counts);
+    drop(counts);
     // (record, its id in the index) of every stored sample.
     let mut stored: Vec<(usize, u32)> = Vec::new();
-    for (i, r) in records.iter().enumerate() {
-        if r.validity(header) != Validity::Valid {
-            continue;
-        }
+    for (i, r) in valid() {
         let id = index.insert(space.point::<D>(r));
         let d = result.decisions[i];
         if d == Decision::AcceptedFinal as u8 || d == Decision::Rejected as u8 {
@@ -57,8 +68,9 @@ pub(super) fn against_all<const D: usize>(
         .map_init(
             || (KBest::new(k), Default::default()),
             |(kb, scratch), &(i, id)| {
+                let q = space.point::<D>(&records[i]);
                 index
-                    .search(index.point(id), Some(id), exact.goal(i), kb, scratch)
+                    .search(&q, Some(id), exact.goal(i), kb, scratch)
                     .verdict
             },
         )

@@ -31,7 +31,12 @@ pub struct Grid<const D: usize> {
     /// The id of each cell's last point: rechecks find the cells that
     /// changed without touching the others' lists.
     newest: Vec<Option<u32>>,
+    /// Every point by id, unless [`Grid::reserve`] dropped it (then the
+    /// cells hold the only copy).
     arena: Vec<[f32; D]>,
+    keep_arena: bool,
+    /// Points inserted.
+    len: usize,
     /// Radius in cells of the block a [`Tile`] gathers: 2 for stills; 1
     /// for animations, whose blocks are cubes.
     tile_radius: usize,
@@ -88,8 +93,34 @@ impl<const D: usize> Grid<D> {
             cells: (0..n).map(|_| Vec::new()).collect(),
             newest: vec![None; n],
             arena: Vec::new(),
+            keep_arena: true,
+            len: 0,
             tile_radius: if axes == 3 { 1 } else { 2 },
         }
+    }
+
+    /// The cell a point with `q`'s image (and time) coordinates falls in:
+    /// colour coordinates do not matter.
+    pub fn cell(&self, q: &[f32; D]) -> usize {
+        self.flat(self.cell_of(q))
+    }
+
+    /// For a grid built once and then only searched: each cell's list
+    /// sized to exactly `counts[cell]` points (no growth slack), and no
+    /// arena, so a point is stored once. `point` is then unavailable and
+    /// the search never rechecks; the points must be inserted next.
+    pub fn reserve(&mut self, counts: &[u32]) {
+        assert_eq!(counts.len(), self.cells.len());
+        assert_eq!(self.len, 0, "reserve before inserting");
+        for (cell, &n) in self.cells.iter_mut().zip(counts) {
+            cell.reserve_exact(n as usize);
+        }
+        self.keep_arena = false;
+    }
+
+    /// Cells in the grid.
+    pub fn cell_count(&self) -> usize {
+        self.cells.len()
     }
 
     #[inline]
@@ -226,9 +257,18 @@ impl<const D: usize> Grid<D> {
 
     fn brute_force(&self, q: &[f32; D], exclude: Option<u32>, goal: Goal, kb: &mut KBest) -> Found {
         kb.clear();
-        for (p, id) in self.arena.iter().zip(0u32..) {
-            if Some(id) != exclude {
-                kb.push(dist2(p, q), id);
+        if self.keep_arena {
+            for (p, id) in self.arena.iter().zip(0u32..) {
+                if Some(id) != exclude {
+                    kb.push(dist2(p, q), id);
+                }
+            }
+        } else {
+            // The k smallest distances are the same whatever the order.
+            for e in self.cells.iter().flatten() {
+                if Some(e.id) != exclude {
+                    kb.push(dist2(&e.p, q), e.id);
+                }
             }
         }
         let verdict = judge(kb, f64::INFINITY, goal).expect("a complete search always decides");
@@ -244,19 +284,23 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
     type Scratch = Tile<D>;
 
     fn insert(&mut self, p: [f32; D]) -> u32 {
-        let id = u32::try_from(self.arena.len()).expect("more than 2^32 stored samples");
+        let id = u32::try_from(self.len).expect("more than 2^32 stored samples");
         let c = self.flat(self.cell_of(&p));
         self.cells[c].push(Entry { p, id });
         self.newest[c] = Some(id);
-        self.arena.push(p);
+        if self.keep_arena {
+            self.arena.push(p);
+        }
+        self.len += 1;
         id
     }
 
     fn len(&self) -> usize {
-        self.arena.len()
+        self.len
     }
 
     fn point(&self, id: u32) -> &[f32; D] {
+        debug_assert!(self.keep_arena, "a reserved grid keeps no arena");
         &self.arena[id as usize]
     }
 
@@ -276,7 +320,7 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
         let centre = self.cell_of(q);
         // The block of radius `tile_radius` settles almost every search.
         let mut r = self.tile_radius;
-        let key = (self.flat(centre), self.arena.len());
+        let key = (self.flat(centre), self.len);
         if !tile.holds(key) {
             // At most 5 × 5 cells for stills, 3 × 3 × 3 for animations.
             let mut block: [&[Entry<D>]; 27] = [&[]; 27];
@@ -314,7 +358,7 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
                 };
             }
             r += 1;
-            if self.ring_cells(r) > self.arena.len() + 64 {
+            if self.ring_cells(r) > self.len + 64 {
                 // Wide, sparse searches: scanning every point is cheaper.
                 return self.brute_force(q, exclude, goal, kb);
             }
@@ -341,7 +385,8 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
         kb: &mut KBest,
         tile: &mut Tile<D>,
     ) -> Found {
-        let new = self.arena.len() - first_new as usize;
+        debug_assert!(self.keep_arena, "a reserved grid is not rechecked");
+        let new = self.len - first_new as usize;
         let before = kb.version();
         if new > 0 {
             if prev.bound == f64::INFINITY || new <= 8 {
