@@ -422,3 +422,57 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Clusters and lone points far apart (so that some searches fall back
+    /// to scanning every point): a reserved grid, which keeps no arena and
+    /// scans its cells instead, gives every verdict and σ the usual grid
+    /// gives, for both goals.
+    #[test]
+    fn a_reserved_grid_searches_like_a_growing_one() {
+        let mut seed = 1u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut points: Vec<[f32; 5]> = Vec::new();
+        for c in 0..6 {
+            let (cx, cy) = (40.0 * c as f32, 7.0 * c as f32);
+            for _ in 0..40 {
+                points.push([cx + next(), cy + next(), next(), next(), next()]);
+            }
+        }
+        for i in 0..5 {
+            points.push([250.0 * next(), 250.0 * next(), 9.0 * i as f32, 0.0, 0.0]);
+        }
+        let extent = [256.0, 256.0, 1.0];
+        let mut growing = Grid::<5>::with_side(extent, -1);
+        let mut reserved = Grid::<5>::with_side(extent, -1);
+        let mut counts = vec![0u32; reserved.cell_count()];
+        for p in &points {
+            counts[reserved.cell(p)] += 1;
+        }
+        reserved.reserve(&counts);
+        for p in &points {
+            assert_eq!(growing.insert(*p), reserved.insert(*p));
+        }
+        assert_eq!(reserved.len(), points.len());
+        for k in [1, 4, 12] {
+            for goal in [Goal::Decide, Goal::Exact] {
+                for (id, p) in points.iter().enumerate() {
+                    let id = Some(id as u32);
+                    let (mut a, mut b) = (KBest::new(k), KBest::new(k));
+                    let (mut ta, mut tb) = (Tile::default(), Tile::default());
+                    let va = growing.search(p, id, goal, &mut a, &mut ta).verdict;
+                    let vb = reserved.search(p, id, goal, &mut b, &mut tb).verdict;
+                    assert_eq!(va, vb, "point {id:?}, k {k}, {goal:?}");
+                }
+            }
+        }
+    }
+}
