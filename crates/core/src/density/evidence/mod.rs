@@ -15,8 +15,8 @@
 //! and a larger set can only lower σ.
 //!
 //! Two ways to find a stored sample's k nearest among every sample, with
-//! the same results: a grid over every valid sample ([`grid`]: fast, about
-//! 60 bytes a sample), or the stored samples as queries and the dump read
+//! the same results: a grid over every valid sample ([`grid`]: fast, 24
+//! bytes a sample), or the stored samples as queries and the dump read
 //! past them once ([`streamed`]: memory proportional to T, slower when T
 //! is sparse or k large). [`AllSamples::for_dump`] picks the grid up to
 //! [`GRID_SAMPLES`] valid samples.
@@ -29,7 +29,7 @@ use crate::dump::{Header, Record};
 use crate::joint::JointSpace;
 
 /// The largest dump (valid samples) whose final pass builds a grid over
-/// every sample: about 1 GB of it (docs/BENCHMARKS.md, "The default run").
+/// every sample: about 400 MB of it (docs/BENCHMARKS.md, "The default run").
 pub const GRID_SAMPLES: u64 = 1 << 24;
 
 /// How F6a finds a stored sample's k nearest among every sample.
