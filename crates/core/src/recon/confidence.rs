@@ -144,21 +144,8 @@ pub fn interval(records: &[Record], h: &Header, z: f64) -> Interval {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dump::Order;
 
-    fn header(w: u32, h: u32) -> Header {
-        Header {
-            width: w,
-            height: h,
-            frames: 1,
-            spp: 0,
-            sample_count: 0,
-            order: Order::Unspecified,
-            scene: String::new(),
-            seed: 0,
-            producer: String::new(),
-        }
-    }
+    use crate::recon::test_header as header;
 
     fn rec(x: f32, y: f32, v: [f32; 3]) -> Record {
         Record::new(x, y, 0.0, v)

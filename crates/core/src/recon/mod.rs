@@ -192,3 +192,20 @@ pub fn sigma_map(records: &[Record], h: &Header, sigma: &[f64]) -> Image {
     }
     img
 }
+
+/// A still film's header with nothing else set, for the tests of this
+/// module's estimators.
+#[cfg(test)]
+pub(crate) fn test_header(width: u32, height: u32) -> Header {
+    Header {
+        width,
+        height,
+        frames: 1,
+        spp: 0,
+        sample_count: 0,
+        order: crate::dump::Order::Unspecified,
+        scene: String::new(),
+        seed: 0,
+        producer: String::new(),
+    }
+}

@@ -224,22 +224,12 @@ mod tests {
         assert!((lo - 3.0 / 7.0).abs() < 1e-15 && (hi - 4.0 / 7.0).abs() < 1e-15);
     }
 
-    use crate::dump::{Header, Order, Record};
+    use crate::dump::{Header, Record};
 
     /// A w × h film with `n` grey samples of value `v` at every pixel
     /// centre, plus `extra` records.
     fn film(w: u32, h: u32, n: u32, v: f32, extra: &[Record]) -> (Header, Vec<Record>) {
-        let header = Header {
-            width: w,
-            height: h,
-            frames: 1,
-            spp: 0,
-            sample_count: 0,
-            order: Order::Unspecified,
-            scene: "test".into(),
-            seed: 0,
-            producer: "test".into(),
-        };
+        let header = crate::recon::test_header(w, h);
         let mut recs = Vec::new();
         for y in 0..h {
             for x in 0..w {
