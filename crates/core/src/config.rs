@@ -157,7 +157,8 @@ impl FilterConfig {
     /// renderer's (docs/RESULTS.md, "HDR fidelity: the defaults"): the
     /// joint space `logluv` (F2b) with the white from the dump, the final
     /// pass against every sample (F6a), k = 5, σ_color = 50, σ_image = 3,
-    /// σ_time = 2; every method but OIDN, the methods' authors' defaults.
+    /// σ_time = 2; the methods of [`MethodSet::DEFAULT`] (all but plain
+    /// OIDN), with their authors' defaults.
     pub const DEFAULT: FilterConfig = FilterConfig {
         k: 5,
         sigma_image: 3.0,
