@@ -92,6 +92,8 @@ fn filter_writes_images_decisions_and_a_report() {
             "filtered_bilateral.png",
             "filtered_energy.exr",
             "filtered_energy.png",
+            "filtered_energy_bilateral_ci.exr",
+            "filtered_energy_bilateral_ci.png",
             "gmon.exr",
             "gmon.png",
             "mean.exr",
@@ -169,7 +171,7 @@ fn every_output_is_bit_identical_for_1_2_and_8_threads() {
                 .into_iter()
                 .filter(|f| !f.starts_with("report."))
                 .collect();
-            assert_eq!(names.len(), 29);
+            assert_eq!(names.len(), 31);
             let mut v: Vec<Vec<u8>> = names
                 .iter()
                 .map(|f| std::fs::read(out.join(f)).unwrap())
