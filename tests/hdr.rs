@@ -88,6 +88,11 @@ fn replay_all(
     r
 }
 
+/// The bits of every σ of a replay that kept them.
+fn bits(s: &Option<Vec<f64>>) -> Vec<u64> {
+    s.as_ref().unwrap().iter().map(|v| v.to_bits()).collect()
+}
+
 fn config(color_space: ColorSpace, final_pass: FinalPass, white: White) -> FilterConfig {
     FilterConfig {
         color_space,
@@ -215,13 +220,6 @@ fn the_final_pass_against_all_agrees_with_the_plain_oracle() {
                         }
                     }
                     assert_eq!(got.decisions, want.decisions, "seed {seed} {space} k {k}");
-                    let bits = |s: &Option<Vec<f64>>| {
-                        s.as_ref()
-                            .unwrap()
-                            .iter()
-                            .map(|v| v.to_bits())
-                            .collect::<Vec<_>>()
-                    };
                     assert_eq!(
                         bits(&got.sigma),
                         bits(&want.sigma),
@@ -270,13 +268,6 @@ fn the_final_pass_against_all_merges_its_jobs_exactly() {
             let got = pool.install(|| replay_all(&recs, &h, &c, 1.0, share, how));
             assert_eq!(got.decisions, want.decisions, "{threads} threads {how:?}");
             assert_eq!(got.counts, want.counts);
-            let bits = |s: &Option<Vec<f64>>| {
-                s.as_ref()
-                    .unwrap()
-                    .iter()
-                    .map(|v| v.to_bits())
-                    .collect::<Vec<_>>()
-            };
             assert_eq!(
                 bits(&got.sigma),
                 bits(&want.sigma),

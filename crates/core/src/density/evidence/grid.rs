@@ -4,7 +4,7 @@
 use crate::density::index::NeighbourIndex;
 use crate::density::index::grid::Grid;
 use crate::density::sigma::KBest;
-use crate::density::{Decision, ExactSigma, FilterResult};
+use crate::density::{ExactSigma, FilterResult};
 use crate::dump::{Header, Record, Validity};
 use crate::joint::JointSpace;
 use crate::par::prelude::*;
@@ -51,18 +51,14 @@ pub(super) fn against_all<const D: usize>(
     }
     index.reserve(&counts);
     drop(counts);
-    // (record, its id in the index) of every stored sample.
+    // (record, its id in the index) of every stored sample to search.
     let mut stored: Vec<(usize, u32)> = Vec::new();
     for (i, r) in valid() {
         let id = index.insert(space.point::<D>(r));
-        let d = result.decisions[i];
-        if d == Decision::AcceptedFinal as u8 || d == Decision::Rejected as u8 {
+        if super::stored(result, i) && super::needs_search(result, exact, i) {
             stored.push((i, id));
         }
     }
-    // A sample the paper's final pass accepted is accepted here too (a
-    // larger set only lowers σ): unless its σ is wanted it needs no search.
-    stored.retain(|&(i, _)| result.decisions[i] == Decision::Rejected as u8 || exact.wants(i));
     let verdicts: Vec<_> = stored
         .par_iter()
         .map_init(
@@ -75,23 +71,8 @@ pub(super) fn against_all<const D: usize>(
             },
         )
         .collect();
-    let counts = &mut result.counts;
     for (&(i, _), v) in stored.iter().zip(&verdicts) {
-        if result.decisions[i] == Decision::AcceptedFinal as u8 {
-            counts.accepted_final -= 1;
-        } else {
-            counts.rejected -= 1;
-        }
-        if let (Some(sig), Some(s), true) = (result.sigma.as_mut(), v.sigma(), exact.wants(i)) {
-            sig[i] = s;
-        }
-        if v.accepted() {
-            result.decisions[i] = Decision::AcceptedFinal as u8;
-            counts.accepted_final += 1;
-        } else {
-            result.decisions[i] = Decision::Rejected as u8;
-            counts.rejected += 1;
-        }
+        super::record(result, exact, i, v.accepted(), v.sigma());
     }
 }
 

@@ -24,7 +24,7 @@
 mod grid;
 mod streamed;
 
-use super::{ExactSigma, FilterResult};
+use super::{Decision, ExactSigma, FilterResult};
 use crate::dump::{Header, Record};
 use crate::joint::JointSpace;
 
@@ -93,4 +93,44 @@ pub fn final_pass_against_all_with(
         }
     }
     result.final_seconds += t.elapsed().as_secs_f64();
+}
+
+/// Whether the paper's replay stored record `i` (T): what F6a re-decides.
+fn stored(result: &FilterResult, i: usize) -> bool {
+    let d = result.decisions[i];
+    d == Decision::AcceptedFinal as u8 || d == Decision::Rejected as u8
+}
+
+/// Whether stored record `i` needs a search: a sample the paper's final
+/// pass accepted is accepted here too (a larger set only lowers σ), so
+/// only its wanted σ would need one.
+fn needs_search(result: &FilterResult, exact: ExactSigma, i: usize) -> bool {
+    result.decisions[i] == Decision::Rejected as u8 || exact.wants(i)
+}
+
+/// Records F6a's verdict on stored record `i` (accepted or not, and its σ
+/// when `exact` wants it), keeping the counts.
+fn record(
+    result: &mut FilterResult,
+    exact: ExactSigma,
+    i: usize,
+    accepted: bool,
+    sigma: Option<f64>,
+) {
+    let counts = &mut result.counts;
+    if result.decisions[i] == Decision::AcceptedFinal as u8 {
+        counts.accepted_final -= 1;
+    } else {
+        counts.rejected -= 1;
+    }
+    if let (Some(sig), Some(s), true) = (result.sigma.as_mut(), sigma, exact.wants(i)) {
+        sig[i] = s;
+    }
+    if accepted {
+        result.decisions[i] = Decision::AcceptedFinal as u8;
+        counts.accepted_final += 1;
+    } else {
+        result.decisions[i] = Decision::Rejected as u8;
+        counts.rejected += 1;
+    }
 }

@@ -10,7 +10,7 @@
 use crate::density::index::NeighbourIndex;
 use crate::density::index::grid::Grid;
 use crate::density::sigma::{Goal, KBest};
-use crate::density::{Decision, ExactSigma, FilterResult};
+use crate::density::{ExactSigma, FilterResult};
 use crate::dump::{Header, Record, Validity};
 use crate::joint::{JointSpace, dist2};
 use crate::par::prelude::*;
@@ -35,22 +35,17 @@ pub(super) fn against_all<const D: usize>(
     let extent = space.extent(header);
     // T: the samples the paper's replay stored, which its final pass judged.
     let stored: Vec<usize> = (0..records.len())
-        .filter(|&i| {
-            let d = result.decisions[i];
-            d == Decision::AcceptedFinal as u8 || d == Decision::Rejected as u8
-        })
+        .filter(|&i| super::stored(result, i))
         .collect();
     let mut t_index = Grid::<D>::new(extent);
     let ids: Vec<u32> = stored
         .iter()
         .map(|&i| t_index.insert(space.point::<D>(&records[i])))
         .collect();
-    // A sample the paper's final pass accepted is accepted here too (a
-    // larger set only lowers σ): unless its σ is wanted it needs no search.
     let asked: Vec<(usize, u32)> = stored
         .iter()
         .zip(&ids)
-        .filter(|&(&i, _)| result.decisions[i] == Decision::Rejected as u8 || exact.wants(i))
+        .filter(|&(&i, _)| super::needs_search(result, exact, i))
         .map(|(&i, &id)| (i, id))
         .collect();
     // Each query's reach: T minus itself is part of every sample but
@@ -119,24 +114,8 @@ pub(super) fn against_all<const D: usize>(
             kb.sigma()
         })
         .collect();
-    let counts = &mut result.counts;
     for (query, &sigma) in queries.iter().zip(&verdicts) {
-        let i = query.rec;
-        if result.decisions[i] == Decision::AcceptedFinal as u8 {
-            counts.accepted_final -= 1;
-        } else {
-            counts.rejected -= 1;
-        }
-        if let (Some(sig), true) = (result.sigma.as_mut(), exact.wants(i)) {
-            sig[i] = sigma;
-        }
-        if sigma < 1.0 {
-            result.decisions[i] = Decision::AcceptedFinal as u8;
-            counts.accepted_final += 1;
-        } else {
-            result.decisions[i] = Decision::Rejected as u8;
-            counts.rejected += 1;
-        }
+        super::record(result, exact, query.rec, sigma < 1.0, Some(sigma));
     }
 }
 
