@@ -442,6 +442,12 @@ fn results_do_not_depend_on_the_thread_count_batch_size_or_deferral() {
                             let plain = density::plain::replay(&recs, &h, &prm.space, 10);
                             assert_eq!(got.0, plain.decisions);
                             assert_eq!(got.2, plain.counts);
+                            if let Some(bits) = &got.1 {
+                                // Later batches complete σ < 1 found
+                                // against the lagging T in parallel.
+                                let want = plain.sigma.as_ref().unwrap();
+                                assert!(bits.iter().zip(want).all(|(a, b)| *a == b.to_bits()));
+                            }
                             base = Some(got)
                         }
                         Some(b) => assert!(
