@@ -18,6 +18,11 @@ use super::{Found, NeighbourIndex, offer_suffix};
 use crate::density::sigma::{Goal, KBest, Sum, Verdict, judge};
 use crate::joint::dist2;
 
+/// Radius in cells of the block a [`Tile`] gathers: 3 × 3 cells, or
+/// 3 × 3 × 3 for animations (why not 5 × 5: docs/BENCHMARKS.md, "The
+/// tile's radius").
+const TILE_RADIUS: usize = 1;
+
 /// Upper limit on the number of cells; the cell side doubles until it fits.
 const MAX_CELLS: usize = 1 << 22;
 
@@ -37,9 +42,6 @@ pub struct Grid<const D: usize> {
     keep_arena: bool,
     /// Points inserted.
     len: usize,
-    /// Radius in cells of the block a [`Tile`] gathers: 2 for stills; 1
-    /// for animations, whose blocks are cubes.
-    tile_radius: usize,
 }
 
 // Axis loops index several parallel arrays (side, dims, cell coordinates).
@@ -95,7 +97,6 @@ impl<const D: usize> Grid<D> {
             arena: Vec::new(),
             keep_arena: true,
             len: 0,
-            tile_radius: if axes == 3 { 1 } else { 2 },
         }
     }
 
@@ -318,11 +319,11 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
         tile: &mut Tile<D>,
     ) -> Found {
         let centre = self.cell_of(q);
-        // The block of radius `tile_radius` settles almost every search.
-        let mut r = self.tile_radius;
+        // The block of radius TILE_RADIUS settles almost every search.
+        let mut r = TILE_RADIUS;
         let key = (self.flat(centre), self.len);
         if !tile.holds(key) {
-            // At most 5 × 5 cells for stills, 3 × 3 × 3 for animations.
+            // At most 3 × 3 cells for stills, 3 × 3 × 3 for animations.
             let mut block: [&[Entry<D>]; 27] = [&[]; 27];
             let mut len = 0;
             for rr in 0..=r {
