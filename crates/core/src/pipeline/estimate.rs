@@ -14,6 +14,7 @@ use super::methods::Method;
 use crate::config::FilterConfig;
 use crate::dump::{Header, Record};
 use crate::imagespace;
+use crate::par::prelude::*;
 use crate::recon::confidence::{self, Interval};
 use crate::recon::groups::PixelGroups;
 use crate::recon::mon::{self, MonImages};
@@ -105,6 +106,52 @@ impl<'s, 'a> Estimators<'s, 'a> {
         }
     }
 
+    /// Computes now the shared work `images` (as `images_of` lists them)
+    /// need: the per-pixel groups first, then the pieces made from them
+    /// and the others side by side. Call it before making the images in
+    /// parallel: a thread that waits inside a piece's own parallel loop
+    /// may take up any job queued beside it, and one that asks for the
+    /// piece being made would wait on itself. Here every piece is made by
+    /// one job only, and the groups before any job that reads them.
+    pub fn prepare(&self, images: &[(Method, bool)]) {
+        let wants = |ms: &[Method]| images.iter().any(|(m, _)| ms.contains(m));
+        let (robust, mon) = (
+            wants(&[Method::Median, Method::Trimmed]),
+            wants(&[Method::Mon, Method::Gmon]),
+        );
+        if robust || mon {
+            self.shared.groups();
+        }
+        let pieces: [(bool, &(dyn Fn() + Sync)); 5] = [
+            (robust, &|| {
+                self.robust_images();
+            }),
+            (mon, &|| {
+                self.mon_images();
+            }),
+            (
+                wants(&[Method::FilteredEnergy, Method::FilteredEnergyBilateralCi]),
+                &|| {
+                    self.filtered_energy();
+                },
+            ),
+            (
+                wants(&[Method::FilteredEnergyBilateralCi, Method::OidnCi]),
+                &|| {
+                    self.interval();
+                },
+            ),
+            (wants(&[Method::Oidn, Method::OidnCi]), &|| {
+                // An error stays in its cell, for the image that needs it.
+                let _ = self.oidn_mean();
+            }),
+        ];
+        pieces
+            .par_iter()
+            .filter(|(wanted, _)| *wanted)
+            .for_each(|(_, make)| make());
+    }
+
     /// `method`'s image and the seconds it took from the dump. Only OIDN
     /// can fail (its library reports an error).
     pub fn image(&self, method: Method) -> Result<(Image, f64), String> {
@@ -121,11 +168,16 @@ impl<'s, 'a> Estimators<'s, 'a> {
     /// `img` (made in `seconds`) held inside every pixel's confidence
     /// interval, and the seconds from the dump.
     fn bounded(&self, img: &Image, seconds: f64) -> (Image, f64) {
-        let (ci, ci_s) = self.interval.get_or_init(|| {
-            timed(|| confidence::interval(self.shared.records, self.shared.header, confidence::Z))
-        });
+        let (ci, ci_s) = self.interval();
         let (out, t) = timed(|| ci.bound(img));
         (out, seconds + ci_s + t)
+    }
+
+    /// Every pixel's confidence interval, made once.
+    fn interval(&self) -> &(Interval, f64) {
+        self.interval.get_or_init(|| {
+            timed(|| confidence::interval(self.shared.records, self.shared.header, confidence::Z))
+        })
     }
 
     /// OIDN's image of the mean, made once, and the seconds from the dump.
@@ -220,19 +272,31 @@ impl<'s, 'a> Estimators<'s, 'a> {
     }
 
     fn robust(&self, pick: impl Fn(&RobustImages) -> &Image) -> (Image, f64) {
+        let (r, s) = self.robust_images();
+        (pick(r).clone(), s)
+    }
+
+    /// Median and trimmed, made once, and the seconds from the dump.
+    fn robust_images(&self) -> (&RobustImages, f64) {
         let (groups, group_s) = self.shared.groups();
         let (r, s) = self.robust.get_or_init(|| {
             timed(|| robust::robust_images(groups, self.shared.header, self.config.alpha))
         });
-        (pick(r).clone(), group_s + s)
+        (r, group_s + s)
     }
 
     fn mon(&self, pick: impl Fn(&MonImages) -> &Image) -> (Image, f64) {
+        let (m, s) = self.mon_images();
+        (pick(m).clone(), s)
+    }
+
+    /// mon and gmon, made once, and the seconds from the dump.
+    fn mon_images(&self) -> (&MonImages, f64) {
         let (groups, group_s) = self.shared.groups();
         let (m, s) = self.mon.get_or_init(|| {
             timed(|| mon::mon_images(groups, self.shared.header, self.config.mon_groups))
         });
-        (pick(m).clone(), group_s + s)
+        (m, group_s + s)
     }
 }
 

@@ -348,10 +348,12 @@ pub fn run(
     let core = reconstruct(records, header, config, accepted, replay_seconds);
     let shared = Shared::new(records, header);
     let estimators = Estimators::new(&shared, config, white, &core);
-    // The images in parallel (each is deterministic on its own, and the
-    // passes they share are computed once, by whichever needs one first).
+    // The images in parallel, after the work they share (each is
+    // deterministic on its own).
+    let wanted = images_of(config);
     let images: Vec<MethodImage> = pool.install(|| {
-        images_of(config)
+        estimators.prepare(&wanted);
+        wanted
             .par_iter()
             .map(|&(method, denoised)| {
                 let made = if denoised {
