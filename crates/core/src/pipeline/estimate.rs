@@ -4,8 +4,11 @@
 //!
 //! Estimators that share work (the per-pixel grouping behind median,
 //! trimmed, mon and gmon; one pass for median and trimmed, one for mon and
-//! gmon) compute it once, on first use. Each image's time includes the
-//! work it shares with others, so it is the cost of that image alone.
+//! gmon; filtered_energy; the confidence intervals; OIDN of the mean)
+//! compute it once: on first use, or all of it up front with
+//! [`Estimators::prepare`] before the images are made in parallel. Each
+//! image's time includes the work it shares with others, so it is the
+//! cost of that image alone.
 
 use std::sync::OnceLock;
 use std::time::Instant;
