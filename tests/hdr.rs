@@ -237,9 +237,10 @@ fn the_final_pass_against_all_agrees_with_the_plain_oracle() {
     }
 }
 
-/// F6a over more records than one job of its pass over the dump (65,536):
-/// the k nearest of each stored sample merged from several jobs give the
-/// oracle's decisions and σ on 1 and 2 threads.
+/// F6a over more records than one job of its pass over the dump (65,536)
+/// and than one block of its grid's parallel build (16,384): the k nearest
+/// of each stored sample merged from several jobs, and the grid's ids,
+/// give the oracle's decisions and σ on 1 and 2 threads.
 #[test]
 fn the_final_pass_against_all_merges_its_jobs_exactly() {
     let p = pathdensity::synth::SynthParams {
