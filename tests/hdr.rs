@@ -166,15 +166,19 @@ fn the_final_pass_against_all_agrees_with_the_plain_oracle() {
         let mut rng = Rng(seed);
         let frames = if animated { 3 } else { 1 };
         let h = header(9, 7, frames);
+        // One record in 50 invalid (off the film, or a NaN colour): F6a's
+        // grid holds only the valid ones, and ids must still name them.
         let recs: Vec<Record> = (0..900)
-            .map(|_| {
+            .map(|i| {
                 let bright = rng.f32() < 0.05;
                 let m = if bright { 30.0 * rng.f32() } else { 0.3 };
+                let x = if i % 100 == 7 { 9.5 } else { 9.0 * rng.f32() };
+                let g = if i % 100 == 57 { f32::NAN } else { m };
                 Record::new(
-                    9.0 * rng.f32(),
+                    x,
                     7.0 * rng.f32(),
                     frames as f32 * rng.f32() * 0.999,
-                    [m * rng.f32(), m, m * (0.5 + rng.f32())],
+                    [m * rng.f32(), g, m * (0.5 + rng.f32())],
                 )
             })
             .collect();
