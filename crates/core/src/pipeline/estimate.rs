@@ -6,7 +6,8 @@
 //! trimmed, mon and gmon; one pass for median and trimmed, one for mon and
 //! gmon; filtered_energy; the confidence intervals; OIDN of the mean)
 //! compute it once: on first use, or all of it up front with
-//! [`Estimators::prepare`] before the images are made in parallel. Each
+//! [`Estimators::prepare`] before the images are made in parallel
+//! ([`Piece::of`] says which method uses which piece). Each
 //! image's time includes the work it shares with others, so it is the
 //! cost of that image alone.
 
@@ -73,6 +74,52 @@ impl<'a> Shared<'a> {
     }
 }
 
+/// Work several images share, made once per configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Piece {
+    /// Median and trimmed ([`robust::robust_images`]).
+    Robust,
+    /// mon and gmon ([`mon::mon_images`]).
+    Mon,
+    /// filtered_energy's image.
+    FilteredEnergy,
+    /// Every pixel's confidence interval.
+    Interval,
+    /// OIDN's image of the mean.
+    OidnMean,
+}
+
+impl Piece {
+    pub const ALL: [Piece; 5] = [
+        Piece::Robust,
+        Piece::Mon,
+        Piece::FilteredEnergy,
+        Piece::Interval,
+        Piece::OidnMean,
+    ];
+
+    /// The shared pieces `method`'s image is made from: what
+    /// [`Estimators::prepare`] makes for it (a test checks that no image
+    /// uses a piece not listed here).
+    pub fn of(method: Method) -> &'static [Piece] {
+        match method {
+            Method::Median | Method::Trimmed => &[Piece::Robust],
+            Method::Mon | Method::Gmon => &[Piece::Mon],
+            Method::FilteredEnergy => &[Piece::FilteredEnergy],
+            Method::FilteredEnergyBilateralCi => &[Piece::FilteredEnergy, Piece::Interval],
+            Method::Oidn => &[Piece::OidnMean],
+            Method::OidnCi => &[Piece::OidnMean, Piece::Interval],
+            Method::Mean
+            | Method::Filtered
+            | Method::Bilateral
+            | Method::Median3
+            | Method::FilteredBilateral
+            | Method::Rwmc
+            | Method::Clamp => &[],
+        }
+    }
+}
+
 /// The estimators of one configuration over one dump.
 pub struct Estimators<'s, 'a> {
     shared: &'s Shared<'a>,
@@ -110,49 +157,39 @@ impl<'s, 'a> Estimators<'s, 'a> {
     }
 
     /// Computes now the shared work `images` (as `images_of` lists them)
-    /// need: the per-pixel groups first, then the pieces made from them
-    /// and the others side by side. Call it before making the images in
-    /// parallel: a thread that waits inside a piece's own parallel loop
-    /// may take up any job queued beside it, and one that asks for the
-    /// piece being made would wait on itself. Here every piece is made by
-    /// one job only, and the groups before any job that reads them.
+    /// need ([`Piece::of`]): the per-pixel groups first, then the pieces
+    /// made from them and the others side by side. Call it before making
+    /// the images in parallel: a thread that waits inside a piece's own
+    /// parallel loop may take up any job queued beside it, and one that
+    /// asks for the piece being made would wait on itself. Here every
+    /// piece is made by one job only, and the groups before any job that
+    /// reads them.
     pub fn prepare(&self, images: &[(Method, bool)]) {
-        let wants = |ms: &[Method]| images.iter().any(|(m, _)| ms.contains(m));
-        let (robust, mon) = (
-            wants(&[Method::Median, Method::Trimmed]),
-            wants(&[Method::Mon, Method::Gmon]),
-        );
-        if robust || mon {
+        let wanted = |piece: Piece| images.iter().any(|(m, _)| Piece::of(*m).contains(&piece));
+        if wanted(Piece::Robust) || wanted(Piece::Mon) {
             self.shared.groups();
         }
-        let pieces: [(bool, &(dyn Fn() + Sync)); 5] = [
-            (robust, &|| {
-                self.robust_images();
-            }),
-            (mon, &|| {
-                self.mon_images();
-            }),
-            (
-                wants(&[Method::FilteredEnergy, Method::FilteredEnergyBilateralCi]),
-                &|| {
-                    self.filtered_energy();
-                },
-            ),
-            (
-                wants(&[Method::FilteredEnergyBilateralCi, Method::OidnCi]),
-                &|| {
-                    self.interval();
-                },
-            ),
-            (wants(&[Method::Oidn, Method::OidnCi]), &|| {
-                // An error stays in its cell, for the image that needs it.
-                let _ = self.oidn_mean();
-            }),
-        ];
-        pieces
+        Piece::ALL
             .par_iter()
-            .filter(|(wanted, _)| *wanted)
-            .for_each(|(_, make)| make());
+            .filter(|&&piece| wanted(piece))
+            .for_each(|piece| match piece {
+                Piece::Robust => {
+                    self.robust_images();
+                }
+                Piece::Mon => {
+                    self.mon_images();
+                }
+                Piece::FilteredEnergy => {
+                    self.filtered_energy();
+                }
+                Piece::Interval => {
+                    self.interval();
+                }
+                Piece::OidnMean => {
+                    // An error stays in its cell, for the image that needs it.
+                    let _ = self.oidn_mean();
+                }
+            });
     }
 
     /// `method`'s image and the seconds it took from the dump. Only OIDN
@@ -307,4 +344,67 @@ fn timed<T>(f: impl FnOnce() -> T) -> (T, f64) {
     let t = Instant::now();
     let v = f();
     (v, t.elapsed().as_secs_f64())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::recon::{self, test_header};
+
+    impl Estimators<'_, '_> {
+        /// Which shared pieces have been made, in [`Piece::ALL`]'s order.
+        fn made(&self) -> Vec<Piece> {
+            let set = [
+                self.robust.get().is_some(),
+                self.mon.get().is_some(),
+                self.filtered_energy.get().is_some(),
+                self.interval.get().is_some(),
+                self.oidn_mean.get().is_some(),
+            ];
+            Piece::ALL
+                .into_iter()
+                .zip(set)
+                .filter(|p| p.1)
+                .map(|p| p.0)
+                .collect()
+        }
+    }
+
+    /// `prepare` can only make what [`Piece::of`] lists: every method's
+    /// image, made on its own, makes exactly its listed pieces.
+    #[test]
+    fn each_image_makes_exactly_the_pieces_it_lists() {
+        let h = test_header(6, 5);
+        let records: Vec<Record> = (0..6 * 5 * 12)
+            .map(|i| {
+                let v = 0.1 + (i % 17) as f32 * if i % 53 == 0 { 40.0 } else { 0.02 };
+                Record::new(
+                    (i % 6) as f32 + 0.5,
+                    ((i / 6) % 5) as f32 + 0.5,
+                    0.0,
+                    [v; 3],
+                )
+            })
+            .collect();
+        let config = FilterConfig::DEFAULT;
+        let rec = recon::reconstruct(&records, &h, config.recon.filter(), |i| i % 53 != 0);
+        let core = Core::new(rec, 0.0, 0.0);
+        for method in Method::ALL {
+            let shared = Shared::new(&records, &h);
+            let estimators = Estimators::new(&shared, &config, 1.0, &core);
+            let made = estimators.image(method);
+            let mut want = Piece::of(method).to_vec();
+            want.sort_by_key(|p| Piece::ALL.iter().position(|q| q == p));
+            match made {
+                Ok(_) => assert_eq!(estimators.made(), want, "{method:?}"),
+                // OIDN's methods without the `oidn` feature: they stop at
+                // the piece that failed, which keeps the error.
+                Err(_) => {
+                    let made = estimators.made();
+                    assert!(!made.is_empty(), "{method:?}");
+                    assert!(made.iter().all(|p| want.contains(p)), "{method:?}");
+                }
+            }
+        }
+    }
 }
