@@ -443,9 +443,11 @@ fn results_do_not_depend_on_the_thread_count_batch_size_or_deferral() {
                             assert_eq!(got.0, plain.decisions);
                             assert_eq!(got.2, plain.counts);
                             if let Some(bits) = &got.1 {
-                                // Later batches complete σ < 1 found
-                                // against the lagging T in parallel.
+                                // Every σ the replay kept is the plain
+                                // replay's, bit for bit (and every later
+                                // run must equal this one).
                                 let want = plain.sigma.as_ref().unwrap();
+                                assert_eq!(bits.len(), want.len());
                                 assert!(bits.iter().zip(want).all(|(a, b)| *a == b.to_bits()));
                             }
                             base = Some(got)

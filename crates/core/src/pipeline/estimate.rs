@@ -354,7 +354,8 @@ mod tests {
     impl Estimators<'_, '_> {
         /// Which shared pieces have been made, in [`Piece::ALL`]'s order.
         fn made(&self) -> Vec<Piece> {
-            let set = [
+            // Sized by Piece::ALL: a new piece must be added here too.
+            let set: [bool; Piece::ALL.len()] = [
                 self.robust.get().is_some(),
                 self.mon.get().is_some(),
                 self.filtered_energy.get().is_some(),
