@@ -57,6 +57,8 @@ pub struct Shared<'a> {
     records: &'a [Record],
     header: &'a Header,
     groups: OnceLock<(PixelGroups<'a>, f64)>,
+    /// Every pixel's confidence interval (the `_ci` methods).
+    interval: OnceLock<(Interval, f64)>,
 }
 
 impl<'a> Shared<'a> {
@@ -65,12 +67,20 @@ impl<'a> Shared<'a> {
             records,
             header,
             groups: OnceLock::new(),
+            interval: OnceLock::new(),
         }
     }
 
     fn groups(&self) -> &(PixelGroups<'a>, f64) {
         self.groups
             .get_or_init(|| timed(|| PixelGroups::new(self.records, self.header)))
+    }
+
+    /// Every pixel's confidence interval, made once.
+    fn interval(&self) -> &(Interval, f64) {
+        self.interval.get_or_init(|| {
+            timed(|| confidence::interval(self.records, self.header, confidence::Z))
+        })
     }
 }
 
@@ -131,8 +141,6 @@ pub struct Estimators<'s, 'a> {
     mon: OnceLock<(MonImages, f64)>,
     /// OIDN's image of the mean (`oidn`, and `oidn_ci` starts from it).
     oidn_mean: OnceLock<Result<(Image, f64), String>>,
-    /// Every pixel's confidence interval (the `_ci` methods).
-    interval: OnceLock<(Interval, f64)>,
     filtered_energy: OnceLock<(Image, f64)>,
 }
 
@@ -151,7 +159,6 @@ impl<'s, 'a> Estimators<'s, 'a> {
             robust: OnceLock::new(),
             mon: OnceLock::new(),
             oidn_mean: OnceLock::new(),
-            interval: OnceLock::new(),
             filtered_energy: OnceLock::new(),
         }
     }
@@ -183,7 +190,7 @@ impl<'s, 'a> Estimators<'s, 'a> {
                     self.filtered_energy();
                 }
                 Piece::Interval => {
-                    self.interval();
+                    self.shared.interval();
                 }
                 Piece::OidnMean => {
                     // An error stays in its cell, for the image that needs it.
@@ -208,16 +215,9 @@ impl<'s, 'a> Estimators<'s, 'a> {
     /// `img` (made in `seconds`) held inside every pixel's confidence
     /// interval, and the seconds from the dump.
     fn bounded(&self, img: &Image, seconds: f64) -> (Image, f64) {
-        let (ci, ci_s) = self.interval();
+        let (ci, ci_s) = self.shared.interval();
         let (out, t) = timed(|| ci.bound(img));
         (out, seconds + ci_s + t)
-    }
-
-    /// Every pixel's confidence interval, made once.
-    fn interval(&self) -> &(Interval, f64) {
-        self.interval.get_or_init(|| {
-            timed(|| confidence::interval(self.shared.records, self.shared.header, confidence::Z))
-        })
     }
 
     /// OIDN's image of the mean, made once, and the seconds from the dump.
@@ -359,7 +359,7 @@ mod tests {
                 self.robust.get().is_some(),
                 self.mon.get().is_some(),
                 self.filtered_energy.get().is_some(),
-                self.interval.get().is_some(),
+                self.shared.interval.get().is_some(),
                 self.oidn_mean.get().is_some(),
             ];
             Piece::ALL

@@ -89,6 +89,19 @@ impl Method {
         }
     }
 
+    /// Whether the image depends on the filter's decisions. The others
+    /// are made from the samples alone, so a run makes them beside the
+    /// replay.
+    pub fn needs_decisions(self) -> bool {
+        matches!(
+            self,
+            Method::Filtered
+                | Method::FilteredBilateral
+                | Method::FilteredEnergy
+                | Method::FilteredEnergyBilateralCi
+        )
+    }
+
     /// Whether the image needs OIDN (a build with the `oidn` feature).
     pub fn needs_oidn(self) -> bool {
         matches!(self, Method::Oidn | Method::OidnCi)

@@ -322,6 +322,10 @@ pub fn reconstruct(
 }
 
 /// Runs the whole pipeline on `records`.
+///
+/// The images no decision changes ([`Method::needs_decisions`]) are made
+/// beside the replay, on the same threads: the replay's serial steps leave
+/// a core idle that they fill. The others follow the replay.
 pub fn run(
     records: &[Record],
     header: &Header,
@@ -331,14 +335,27 @@ pub fn run(
     check(config, records, header)?;
     let pool = thread_pool(options.threads)?;
     let white = resolve_white(config, records, header)?;
-    let result = pool.install(|| {
-        replay(
-            records,
-            header,
-            config,
-            white,
-            options.exact_sigma,
-            options.progress,
+    let shared = Shared::new(records, header);
+    let wanted = images_of(config);
+    let (decided, undecided): (Vec<_>, Vec<_>) =
+        wanted.iter().partition(|(m, _)| m.needs_decisions());
+    let (result, early) = pool.install(|| {
+        crate::par::join(
+            || {
+                replay(
+                    records,
+                    header,
+                    config,
+                    white,
+                    options.exact_sigma,
+                    options.progress,
+                )
+            },
+            || {
+                // Filtered is the mean here: only decision-free images read it.
+                let core = reconstruct(records, header, config, |_| true, 0.0);
+                images(&Estimators::new(&shared, config, white, &core), &undecided)
+            },
         )
     });
     options.progress.finish();
@@ -346,34 +363,10 @@ pub fn run(
     let replay_seconds = result.streaming_seconds + result.final_seconds;
     let accepted = |i: usize| Decision::accepted(result.decisions[i]);
     let core = reconstruct(records, header, config, accepted, replay_seconds);
-    let shared = Shared::new(records, header);
-    let estimators = Estimators::new(&shared, config, white, &core);
-    // The images in parallel, after the work they share (each is
-    // deterministic on its own).
-    let wanted = images_of(config);
-    let images: Vec<MethodImage> = pool.install(|| {
-        estimators.prepare(&wanted);
-        wanted
-            .par_iter()
-            .map(|&(method, denoised)| {
-                let made = if denoised {
-                    estimators.denoised(method)
-                } else {
-                    estimators.image(method)
-                };
-                let (image, seconds) = made.map_err(|problem| PipelineError::Method {
-                    method: image_name(method, denoised),
-                    problem,
-                })?;
-                Ok(MethodImage {
-                    method,
-                    denoised,
-                    image,
-                    seconds,
-                })
-            })
-            .collect::<Result<_, PipelineError>>()
-    })?;
+    let late =
+        pool.install(|| images(&Estimators::new(&shared, config, white, &core), &decided))?;
+    let mut images: Vec<MethodImage> = early?.into_iter().chain(late).collect();
+    images.sort_by_key(|e| wanted.iter().position(|&w| w == (e.method, e.denoised)));
     let sigma_image = result
         .sigma
         .as_ref()
@@ -392,7 +385,6 @@ pub fn run(
     let (fallback_pixels, empty_pixels) = (rec.fallback_pixels, rec.empty_pixels);
     let occupied = rec.occupancy.len() as u64 - empty_pixels;
     let warnings = warnings(&result.counts, fallback_pixels, occupied);
-    drop(estimators);
     Ok(Run {
         config: *config,
         white,
@@ -410,4 +402,102 @@ pub fn run(
         reconstruct_seconds: t.elapsed().as_secs_f64(),
         warnings,
     })
+}
+
+/// `wanted`'s images in parallel, after the work they share (each is
+/// deterministic on its own).
+fn images(
+    estimators: &Estimators,
+    wanted: &[(Method, bool)],
+) -> Result<Vec<MethodImage>, PipelineError> {
+    estimators.prepare(wanted);
+    wanted
+        .par_iter()
+        .map(|&(method, denoised)| {
+            let made = if denoised {
+                estimators.denoised(method)
+            } else {
+                estimators.image(method)
+            };
+            let (image, seconds) = made.map_err(|problem| PipelineError::Method {
+                method: image_name(method, denoised),
+                problem,
+            })?;
+            Ok(MethodImage {
+                method,
+                denoised,
+                image,
+                seconds,
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::SynthParams;
+
+    /// A run makes the decision-free images beside the replay from a core
+    /// whose filtered image is the mean: [`Method::needs_decisions`] must
+    /// name every image that reads a decision. Each image of `run` is the
+    /// one made after the replay from the true core, for any thread count,
+    /// and the images said to need decisions do differ.
+    #[test]
+    fn the_images_made_beside_the_replay_need_no_decision() {
+        let synth = SynthParams {
+            width: 24,
+            height: 16,
+            spp: 16,
+            firefly_fraction: 0.02,
+            ..SynthParams::default()
+        };
+        let (records, h): (Vec<Record>, Header) = (synth.records().collect(), synth.header());
+        let config = FilterConfig {
+            methods: Method::ALL
+                .into_iter()
+                .filter(|m| !m.needs_oidn() || crate::imagespace::oidn::AVAILABLE)
+                .collect(),
+            ..FilterConfig::DEFAULT
+        };
+        let white = resolve_white(&config, &records, &h).unwrap();
+        let result = replay(
+            &records,
+            &h,
+            &config,
+            white,
+            ExactSigma::None,
+            &crate::progress::Silent,
+        );
+        assert!(result.counts.rejected > 0);
+        let accepted = |i: usize| Decision::accepted(result.decisions[i]);
+        let decided = reconstruct(&records, &h, &config, accepted, 0.0);
+        let undecided = reconstruct(&records, &h, &config, |_| true, 0.0);
+        let shared = Shared::new(&records, &h);
+        let truth = Estimators::new(&shared, &config, white, &decided);
+        let blind = Estimators::new(&shared, &config, white, &undecided);
+        for threads in [1, 2] {
+            let options = RunOptions {
+                threads,
+                exact_sigma: ExactSigma::None,
+                reference: None,
+                progress: &crate::progress::Silent,
+            };
+            let run = run(&records, &h, &config, &options).unwrap();
+            let made: Vec<(Method, bool)> =
+                run.images.iter().map(|e| (e.method, e.denoised)).collect();
+            assert_eq!(made, images_of(&config));
+            for e in run.images.iter().filter(|e| !e.method.needs_oidn()) {
+                let want = truth.image(e.method).unwrap().0;
+                assert!(e.image.data == want.data, "{} differs", e.method);
+                let without = blind.image(e.method).unwrap().0;
+                assert_eq!(
+                    e.method.needs_decisions(),
+                    without.data != want.data,
+                    "{}",
+                    e.method
+                );
+            }
+        }
+    }
 }
