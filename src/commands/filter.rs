@@ -237,16 +237,23 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
         if let Some(r) = &reference {
             assets.reference = Some(previews("reference", tone(r), &mut outputs)?);
         }
-        let pngs: Vec<(String, Vec<Vec<u8>>, Vec<String>)> = pool.install(|| {
-            run.images
-                .par_iter()
-                .map(|e| {
-                    let mut files = Vec::new();
-                    let frames = previews(&e.name(), tone(&e.image), &mut files)?;
-                    Ok((e.name(), frames, files))
-                })
-                .collect::<Result<_>>()
-        })?;
+        // The slice plot (one thread) beside the previews.
+        let (pngs, svg) = pool.install(|| {
+            rayon::join(
+                || {
+                    run.images
+                        .par_iter()
+                        .map(|e| {
+                            let mut files = Vec::new();
+                            let frames = previews(&e.name(), tone(&e.image), &mut files)?;
+                            Ok((e.name(), frames, files))
+                        })
+                        .collect::<Result<Vec<(String, Vec<Vec<u8>>, Vec<String>)>>>()
+                },
+                || slice_row.map(|row| plots::slice_svg(records, &h, &run.decisions, row)),
+            )
+        });
+        let pngs = pngs?;
         for (name, frames, files) in pngs {
             assets.images.push((name, frames));
             outputs.extend(files);
@@ -259,9 +266,8 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
                 .collect();
             assets.sigma = Some((previews("sigma", frames, &mut outputs)?, scale));
         }
-        if let Some(row) = slice_row {
-            let svg = plots::slice_svg(records, &h, &run.decisions, row)
-                .map_err(|e| anyhow::anyhow!("cannot draw the slice plot: {e}"))?;
+        if let Some(svg) = svg {
+            let svg = svg.map_err(|e| anyhow::anyhow!("cannot draw the slice plot: {e}"))?;
             atomic::write_bytes(&dir.join("slice.svg"), svg.as_bytes())?;
             outputs.push("slice.svg".into());
             assets.slice_svg = Some(svg);
