@@ -30,7 +30,7 @@ pub struct Core {
     pub reconstruction: Reconstruction,
     /// `mean − filtered` ([`energy::removed`]).
     pub removed: Image,
-    /// Seconds of the pass that made mean and filtered.
+    /// Seconds of the passes that made mean and filtered.
     pub reconstruct_seconds: f64,
     /// Seconds of the replay that decided which samples are accepted.
     pub replay_seconds: f64,

@@ -17,7 +17,7 @@ use crate::joint::white::auto_white;
 use crate::metrics::{self, ImageMetrics};
 use crate::par::prelude::*;
 use crate::progress::Progress;
-use crate::recon::{self, Image};
+use crate::recon::{self, Image, Reconstruction};
 use estimate::{Core, Estimators, Shared};
 use methods::Method;
 
@@ -352,9 +352,13 @@ pub fn run(
                 )
             },
             || {
-                // Filtered is the mean here: only decision-free images read it.
-                let core = reconstruct(records, header, config, |_| true, 0.0);
-                images(&Estimators::new(&shared, config, white, &core), &undecided)
+                let t = Instant::now();
+                let (mean, occupancy) = recon::mean(records, header, config.recon.filter());
+                // Every sample accepted: decision-free images read no filtered image.
+                let rec = Reconstruction::all_accepted(mean, occupancy);
+                let core = Core::new(rec, t.elapsed().as_secs_f64(), 0.0);
+                let images = images(&Estimators::new(&shared, config, white, &core), &undecided);
+                (images, core)
             },
         )
     });
@@ -362,7 +366,18 @@ pub fn run(
     let t = Instant::now();
     let replay_seconds = result.streaming_seconds + result.final_seconds;
     let accepted = |i: usize| Decision::accepted(result.decisions[i]);
-    let core = reconstruct(records, header, config, accepted, replay_seconds);
+    let (early, undecided_core) = early;
+    let Reconstruction {
+        mean, occupancy, ..
+    } = undecided_core.reconstruction;
+    let filter = config.recon.filter();
+    let rec = Reconstruction::new(records, header, filter, mean, occupancy, accepted);
+    let mean_seconds = undecided_core.reconstruct_seconds;
+    let core = Core::new(
+        rec,
+        mean_seconds + t.elapsed().as_secs_f64(),
+        replay_seconds,
+    );
     let late =
         pool.install(|| images(&Estimators::new(&shared, config, white, &core), &decided))?;
     let mut images: Vec<MethodImage> = early?.into_iter().chain(late).collect();

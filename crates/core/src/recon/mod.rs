@@ -121,7 +121,7 @@ fn add(acc: &mut [f64; 4], c: [f64; 3], w: f64) {
     acc[3] += w;
 }
 
-/// The mean and filtered images of docs/filter.md §3, in one pass over the dump.
+/// The mean and filtered images of docs/filter.md §3.
 pub struct Reconstruction {
     pub mean: Image,
     pub filtered: Image,
@@ -141,34 +141,68 @@ pub fn reconstruct(
     filter: ReconFilter,
     accepted: impl Fn(usize) -> bool,
 ) -> Reconstruction {
-    let mut mean = Film::new(h, filter);
-    let mut filt = Film::new(h, filter);
+    let (mean, occupancy) = mean(records, h, filter);
+    Reconstruction::new(records, h, filter, mean, occupancy, accepted)
+}
+
+/// The mean of all valid samples and every pixel's number of them (its
+/// occupancy): what needs no decision.
+pub fn mean(records: &[Record], h: &Header, filter: ReconFilter) -> (Image, Vec<u32>) {
+    let mut film = Film::new(h, filter);
     let mut occ = vec![0u32; h.pixels() * h.frames as usize];
-    for (i, r) in records.iter().enumerate() {
-        if r.validity(h) != Validity::Valid {
-            continue;
-        }
-        occ[r.pixel_index(h)] += 1;
-        mean.splat(r);
-        if accepted(i) {
-            filt.splat(r);
+    for r in records {
+        if r.validity(h) == Validity::Valid {
+            occ[r.pixel_index(h)] += 1;
+            film.splat(r);
         }
     }
-    let mean_img = mean.resolve(&occ);
-    let mut filtered = filt.resolve(&occ);
-    let fallback: Vec<usize> = (0..occ.len())
-        .filter(|&px| occ[px] > 0 && filt.weight(px) == 0.0)
-        .collect();
-    let medians = median::pixel_medians(records, h, &fallback);
-    for (&px, m) in fallback.iter().zip(medians) {
-        filtered.data[px] = m;
+    (film.resolve(&occ), occ)
+}
+
+impl Reconstruction {
+    /// `mean` and `occupancy` (from [`mean`]) with the filtered image of
+    /// the records `accepted(i)` says are accepted.
+    pub fn new(
+        records: &[Record],
+        h: &Header,
+        filter: ReconFilter,
+        mean: Image,
+        occupancy: Vec<u32>,
+        accepted: impl Fn(usize) -> bool,
+    ) -> Reconstruction {
+        let mut film = Film::new(h, filter);
+        for (i, r) in records.iter().enumerate() {
+            if r.validity(h) == Validity::Valid && accepted(i) {
+                film.splat(r);
+            }
+        }
+        let mut filtered = film.resolve(&occupancy);
+        let fallback: Vec<usize> = (0..occupancy.len())
+            .filter(|&px| occupancy[px] > 0 && film.weight(px) == 0.0)
+            .collect();
+        let medians = median::pixel_medians(records, h, &fallback);
+        for (&px, m) in fallback.iter().zip(medians) {
+            filtered.data[px] = m;
+        }
+        Reconstruction {
+            mean,
+            filtered,
+            empty_pixels: occupancy.iter().filter(|&&n| n == 0).count() as u64,
+            fallback_pixels: fallback.len() as u64,
+            occupancy,
+        }
     }
-    Reconstruction {
-        mean: mean_img,
-        filtered,
-        empty_pixels: occ.iter().filter(|&&n| n == 0).count() as u64,
-        fallback_pixels: fallback.len() as u64,
-        occupancy: occ,
+
+    /// Every sample accepted: the filtered image is the mean (no pixel
+    /// falls back, since each sample weighs on its own pixel).
+    pub fn all_accepted(mean: Image, occupancy: Vec<u32>) -> Reconstruction {
+        Reconstruction {
+            filtered: mean.clone(),
+            mean,
+            empty_pixels: occupancy.iter().filter(|&&n| n == 0).count() as u64,
+            fallback_pixels: 0,
+            occupancy,
+        }
     }
 }
 
