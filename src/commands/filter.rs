@@ -147,14 +147,24 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
     let dir = staging.path();
     // Every image is written (and previewed) on its own: in parallel.
     let pool = pipeline::thread_pool(opts.threads)?;
-    let exrs: Vec<Vec<String>> = pool.install(|| {
-        run.images
-            .par_iter()
-            .map(|e| exr::write_image(dir, &e.name(), &e.image))
-            .collect::<Result<_, _>>()
-    })?;
+    // The dump's hash (for the provenance) beside the images.
+    let (exrs, dump_xxh3) = pool.install(|| {
+        rayon::join(
+            || {
+                run.images
+                    .iter()
+                    .map(|e| (e.name(), &e.image))
+                    .chain([("rejected".to_string(), &run.removed)])
+                    .collect::<Vec<_>>()
+                    .par_iter()
+                    .map(|(name, image)| exr::write_image(dir, name, image))
+                    .collect::<Result<Vec<Vec<String>>, _>>()
+            },
+            || dump.content_hash(),
+        )
+    });
+    let exrs = exrs?;
     let mut outputs: Vec<String> = exrs.into_iter().flatten().collect();
-    outputs.extend(exr::write_image(dir, "rejected", &run.removed)?);
     // sigma.exr holds exact values only: the report's map may be an
     // estimate from a share of the samples.
     if let (Some(img), ExactSigma::All) = (&run.sigma_image, exact_sigma) {
@@ -200,7 +210,7 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
                 env!("PATHDENSITY_COMMIT")
             ),
             command: std::env::args().collect(),
-            dump_xxh3: format!("{:016x}", dump.content_hash()),
+            dump_xxh3: format!("{dump_xxh3:016x}"),
             config_xxh3: format!("{:016x}", opts.config_hash()),
             reference_xxh3: reference
                 .as_ref()

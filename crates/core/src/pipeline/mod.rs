@@ -378,14 +378,17 @@ pub fn run(
         mean_seconds + t.elapsed().as_secs_f64(),
         replay_seconds,
     );
-    let late =
-        pool.install(|| images(&Estimators::new(&shared, config, white, &core), &decided))?;
-    let mut images: Vec<MethodImage> = early?.into_iter().chain(late).collect();
+    let (late, sigma_image) = pool.install(|| {
+        crate::par::join(
+            || images(&Estimators::new(&shared, config, white, &core), &decided),
+            || {
+                let sigma = result.sigma.as_ref();
+                sigma.map(|s| recon::sigma_map(records, header, s))
+            },
+        )
+    });
+    let mut images: Vec<MethodImage> = early?.into_iter().chain(late?).collect();
     images.sort_by_key(|e| wanted.iter().position(|&w| w == (e.method, e.denoised)));
-    let sigma_image = result
-        .sigma
-        .as_ref()
-        .map(|s| recon::sigma_map(records, header, s));
     let metrics = match options.reference {
         Some(r) => images
             .iter()
