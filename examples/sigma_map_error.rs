@@ -1,11 +1,13 @@
-//! How far the HTML report's σ map (the mean exact σ of about one sample
-//! in n per pixel, `ExactSigma::OneIn`) is from the exact one (every
+//! How far the HTML report's σ map (the mean exact σ of one sample in n,
+//! `ExactSigma::for_map`) is from the exact one (every
 //! sample's σ), per dump, with the default configuration (docs/BENCHMARKS.md,
 //! "The default run").
 //!
 //!     cargo run --release --example sigma_map_error -- DUMP [N …]
 //!
-//! For each N (default: the share the report uses, spp / 16): the median
+//! For each N, one sample in N picked by a hash of its record index and,
+//! in a pixel- or pass-major dump, one in N of each pixel's (default: the
+//! share the report uses, `ExactSigma::for_map`): the median
 //! and 90th percentile of the per-pixel relative error, the correlation of
 //! the two maps' logarithms, and how far the estimate moves a pixel along
 //! the report's colour ramp (log scale from the exact map's 1st to 99th
@@ -13,7 +15,7 @@
 //! as a fraction of the ramp.
 
 use pathdensity::config::FilterConfig;
-use pathdensity::density::ExactSigma;
+use pathdensity::density::{ExactSigma, Strata};
 use pathdensity::dump::DumpReader;
 use pathdensity::pipeline;
 use pathdensity::progress::Silent;
@@ -38,14 +40,15 @@ fn main() -> anyhow::Result<()> {
     let ramp = |s: f64| {
         ((s.max(1e-300).ln() - scale.low.ln()) / (scale.high.ln() - scale.low.ln())).clamp(0.0, 1.0)
     };
-    let shares: Vec<ExactSigma> = if args.len() > 1 {
-        args[1..]
-            .iter()
-            .map(|n| n.parse().map(ExactSigma::OneIn))
-            .collect::<Result<_, _>>()?
-    } else {
-        vec![ExactSigma::for_map(h.spp)]
-    };
+    let mut shares = Vec::new();
+    for n in &args[1..] {
+        let n: u32 = n.parse()?;
+        shares.push(ExactSigma::OneIn(n));
+        shares.extend(Strata::new(&h, n).map(ExactSigma::Strata));
+    }
+    if shares.is_empty() {
+        shares.push(ExactSigma::for_map(&h));
+    }
     for share in shares {
         let est = map(share);
         let (mut rel, mut shift, mut logs) = (Vec::new(), Vec::new(), Vec::new());
@@ -79,8 +82,13 @@ fn main() -> anyhow::Result<()> {
         }
         let mean_shift = shift.iter().sum::<f64>() / shift.len().max(1) as f64;
         println!(
-            "{path} {:?}: relative error median {:.4} p90 {:.4}; corr(log) {:.4}; ramp shift mean {:.4} p99 {:.4}; pixels without an estimate {empty} (ramp {:.3}..{:.3})",
-            share,
+            "{path} {}: relative error median {:.4} p90 {:.4}; corr(log) {:.4}; ramp shift mean {:.4} p99 {:.4}; pixels without an estimate {empty} (ramp {:.3}..{:.3})",
+            match share {
+                ExactSigma::OneIn(n) => format!("one in {n} (hash)"),
+                ExactSigma::Strata(_) =>
+                    format!("one in {} of each pixel", share.share().unwrap_or(1)),
+                _ => "every sample".to_string(),
+            },
             q(&mut rel, 0.5),
             q(&mut rel, 0.9),
             c / (vt * ve).sqrt(),

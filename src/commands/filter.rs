@@ -8,7 +8,7 @@ use anyhow::{Result, bail};
 
 use crate::config::{FilterConfig, Method};
 use crate::density::ExactSigma;
-use crate::dump::DumpReader;
+use crate::dump::{DumpReader, Header};
 use crate::io::atomic::{self, Staging};
 use crate::io::{exr, png};
 use crate::pipeline::{self, RunOptions};
@@ -57,10 +57,10 @@ impl FilterOptions {
     /// Whose exact σ the run computes: every sample's for `sigma.exr`
     /// (`sigma_map`), a share for the HTML report's σ map
     /// ([`ExactSigma::for_map`]), none otherwise.
-    pub fn exact_sigma(&self, spp: u32) -> ExactSigma {
+    pub fn exact_sigma(&self, h: &Header) -> ExactSigma {
         match (self.sigma_map, self.html) {
             (true, _) => ExactSigma::All,
-            (false, true) => ExactSigma::for_map(spp),
+            (false, true) => ExactSigma::for_map(h),
             (false, false) => ExactSigma::None,
         }
     }
@@ -129,7 +129,7 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
     let open_seconds = t_start.elapsed().as_secs_f64();
 
     let records = dump.records();
-    let exact_sigma = opts.exact_sigma(h.spp);
+    let exact_sigma = opts.exact_sigma(&h);
     progress.set_length(records.len() as u64);
     let run = pipeline::run(
         records,
@@ -196,10 +196,8 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
         method_seconds: run.images.iter().map(|e| (e.name(), e.seconds)).collect(),
         energy_removed: EnergyRemoved::new(&run.removed, mean),
         sigma_scale,
-        sigma_map_one_in: match exact_sigma {
-            ExactSigma::OneIn(n) => Some(n),
-            _ => None,
-        },
+        sigma_map_one_in: exact_sigma.share(),
+        sigma_map_each_pixel: matches!(exact_sigma, ExactSigma::Strata(_)),
         slice_row,
         outputs: Vec::new(),
         warnings: run.warnings.clone(),

@@ -132,12 +132,16 @@ pub fn render(report: &FilterReport, assets: &Assets) -> String {
             "<div class=\"bar\"><span>σ {:.3} (red)</span><span>log scale</span><span>σ {:.3} (blue)</span></div>",
             s.low, s.high
         );
-        let share = match report.sigma_map_one_in {
-            Some(n) => format!(
+        let share = match (report.sigma_map_one_in, report.sigma_map_each_pixel) {
+            (Some(n), true) => format!(
+                " Estimated from one sample in {n} of each pixel's \
+                 (--sigma-map computes every sample's σ and writes sigma.exr)."
+            ),
+            (Some(n), false) => format!(
                 " Estimated from about one sample in {n}, picked alike in every pixel \
                  (--sigma-map computes every sample's σ and writes sigma.exr)."
             ),
-            None => String::new(),
+            (None, _) => String::new(),
         };
         let caption = format!(
             "σ map: mean σ of each pixel's samples, each the σ that decided it. \

@@ -75,11 +75,15 @@ pub struct FilterReport {
     pub energy_removed: EnergyRemoved,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sigma_scale: Option<SigmaScale>,
-    /// The report's σ map is the mean over about one sample in n (its
-    /// exact σ), an estimate (docs/filter.md §3); absent when every
-    /// sample's σ was computed or there is no map.
+    /// The report's σ map is the mean over one sample in n (its exact σ),
+    /// an estimate (docs/filter.md §3); absent when every sample's σ was
+    /// computed or there is no map.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sigma_map_one_in: Option<u32>,
+    /// Those samples are one in n of each pixel's (`ExactSigma::Strata`),
+    /// not about one in n picked by a hash.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub sigma_map_each_pixel: bool,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub slice_row: Option<u32>,
     pub outputs: Vec<String>,
