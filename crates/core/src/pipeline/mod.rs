@@ -129,7 +129,9 @@ pub struct Run {
     pub metrics: BTreeMap<String, ImageMetrics>,
     pub streaming_seconds: f64,
     pub final_pass_seconds: f64,
-    /// Reconstruction of every image, the σ map and the metrics.
+    /// After the replay: the filtered image, the images that need the
+    /// decisions, the σ map and the metrics. The other images are made
+    /// beside the replay, in its wall time ([`run`]).
     pub reconstruct_seconds: f64,
     /// What the user should hear (most samples rejected, most pixels
     /// falling back).
@@ -324,8 +326,9 @@ pub fn reconstruct(
 /// Runs the whole pipeline on `records`.
 ///
 /// The images no decision changes ([`Method::needs_decisions`]) are made
-/// beside the replay, on the same threads: the replay's serial steps leave
-/// a core idle that they fill. The others follow the replay.
+/// beside the replay, on the same threads, which take up their work where
+/// the replay leaves a core waiting (its serial in-order pass); the others
+/// follow the replay, beside the σ map.
 pub fn run(
     records: &[Record],
     header: &Header,
