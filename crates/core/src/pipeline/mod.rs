@@ -373,17 +373,18 @@ pub fn run(
     let Reconstruction {
         mean, occupancy, ..
     } = undecided_core.reconstruction;
-    let filter = config.recon.filter();
-    let rec = Reconstruction::new(records, header, filter, mean, occupancy, accepted);
     let mean_seconds = undecided_core.reconstruct_seconds;
-    let core = Core::new(
-        rec,
-        mean_seconds + t.elapsed().as_secs_f64(),
-        replay_seconds,
-    );
-    let (late, sigma_image) = pool.install(|| {
+    // The σ map beside the filtered image and the images made from it.
+    let ((core, late), sigma_image) = pool.install(|| {
         crate::par::join(
-            || images(&Estimators::new(&shared, config, white, &core), &decided),
+            || {
+                let filter = config.recon.filter();
+                let rec = Reconstruction::new(records, header, filter, mean, occupancy, accepted);
+                let seconds = mean_seconds + t.elapsed().as_secs_f64();
+                let core = Core::new(rec, seconds, replay_seconds);
+                let late = images(&Estimators::new(&shared, config, white, &core), &decided);
+                (core, late)
+            },
             || {
                 let sigma = result.sigma.as_ref();
                 sigma.map(|s| recon::sigma_map(records, header, s))
