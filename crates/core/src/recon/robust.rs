@@ -3,7 +3,7 @@
 
 use super::Image;
 use super::groups::PixelGroups;
-use super::median::median;
+use super::median::{median, sort_total};
 use crate::dump::Header;
 
 /// The α-trimmed mean of `v` (reordered in place): sort, drop ⌊α n⌋ values
@@ -21,7 +21,7 @@ pub fn trimmed_mean(v: &mut [f64], alpha: f64) -> f64 {
     if n == 0 {
         return 0.0;
     }
-    v.sort_unstable_by(f64::total_cmp);
+    sort_total(v);
     let cut = (alpha * n as f64).floor() as usize;
     let kept = &v[cut..n - cut];
     kept.iter().sum::<f64>() / kept.len() as f64
