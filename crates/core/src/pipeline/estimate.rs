@@ -134,8 +134,9 @@ impl Piece {
 pub struct Estimators<'s, 'a> {
     shared: &'s Shared<'a>,
     config: &'s FilterConfig,
-    /// The resolved white luminance (the bilateral filter's ΔE uses it).
-    white: f64,
+    /// The resolved white luminance (the bilateral filter's ΔE uses it);
+    /// None before it is known, when no image may need it.
+    white: Option<f64>,
     core: &'s Core,
     robust: OnceLock<(RobustImages, f64)>,
     mon: OnceLock<(MonImages, f64)>,
@@ -152,9 +153,22 @@ impl<'s, 'a> Estimators<'s, 'a> {
         core: &'s Core,
     ) -> Estimators<'s, 'a> {
         Estimators {
+            white: Some(white),
+            ..Estimators::before_white(shared, config, core)
+        }
+    }
+
+    /// Estimators for the images that need no white luminance
+    /// ([`Method::needs_white`]), made while it is still being resolved.
+    pub fn before_white(
+        shared: &'s Shared<'a>,
+        config: &'s FilterConfig,
+        core: &'s Core,
+    ) -> Estimators<'s, 'a> {
+        Estimators {
             shared,
             config,
-            white,
+            white: None,
             core,
             robust: OnceLock::new(),
             mon: OnceLock::new(),
@@ -245,6 +259,11 @@ impl<'s, 'a> Estimators<'s, 'a> {
         Ok((d?.image, s))
     }
 
+    fn white(&self) -> f64 {
+        self.white
+            .expect("only an image that needs no white is made before it is known")
+    }
+
     fn exact(&self, method: Method) -> (Image, f64) {
         let (records, h, c) = (self.shared.records, self.shared.header, self.config);
         let rec = &self.core.reconstruction;
@@ -261,7 +280,7 @@ impl<'s, 'a> Estimators<'s, 'a> {
             Method::Bilateral => after(
                 mean_s,
                 timed(|| {
-                    imagespace::bilateral(&rec.mean, &rec.occupancy, c.bilateral(), self.white)
+                    imagespace::bilateral(&rec.mean, &rec.occupancy, c.bilateral(), self.white())
                 }),
             ),
             Method::Median3 => after(
@@ -271,7 +290,12 @@ impl<'s, 'a> Estimators<'s, 'a> {
             Method::FilteredBilateral => after(
                 filtered_s,
                 timed(|| {
-                    imagespace::bilateral(&rec.filtered, &rec.occupancy, c.bilateral(), self.white)
+                    imagespace::bilateral(
+                        &rec.filtered,
+                        &rec.occupancy,
+                        c.bilateral(),
+                        self.white(),
+                    )
                 }),
             ),
             Method::Rwmc => timed(|| rwmc::rwmc(records, h, &c.rwmc())),
@@ -280,8 +304,9 @@ impl<'s, 'a> Estimators<'s, 'a> {
             }
             Method::FilteredEnergyBilateralCi => {
                 let (fe, fe_s) = self.filtered_energy();
-                let (smoothed, t) =
-                    timed(|| imagespace::bilateral(fe, &rec.occupancy, c.bilateral(), self.white));
+                let (smoothed, t) = timed(|| {
+                    imagespace::bilateral(fe, &rec.occupancy, c.bilateral(), self.white())
+                });
                 self.bounded(&smoothed, fe_s + t)
             }
             Method::Oidn | Method::OidnCi => unreachable!("OIDN goes through Estimators::image"),

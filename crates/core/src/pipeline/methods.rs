@@ -102,6 +102,15 @@ impl Method {
         )
     }
 
+    /// Whether the image needs the white luminance (docs/filter.md §1):
+    /// the bilateral filter's ΔE does.
+    pub fn needs_white(self) -> bool {
+        matches!(
+            self,
+            Method::Bilateral | Method::FilteredBilateral | Method::FilteredEnergyBilateralCi
+        )
+    }
+
     /// Whether the image needs OIDN (a build with the `oidn` feature).
     pub fn needs_oidn(self) -> bool {
         matches!(self, Method::Oidn | Method::OidnCi)

@@ -325,34 +325,40 @@ pub fn reconstruct(
 
 /// Runs the whole pipeline on `records`.
 ///
-/// The images no decision changes ([`Method::needs_decisions`]) are made
-/// beside the replay, on the same threads, which take up their work where
-/// the replay leaves a core waiting (its serial in-order pass); the others
-/// follow the replay, beside the σ map.
+/// The images that need neither the decisions
+/// ([`Method::needs_decisions`]) nor the white luminance
+/// ([`Method::needs_white`]) are made beside the checks, the white and the
+/// replay, on the same threads, which take up their work where those leave
+/// a core waiting (the checks and the white are serial passes, and so is
+/// the replay's in-order pass); the others follow the replay, beside the
+/// σ map. A dump the checks refuse is refused once those images are made.
 pub fn run(
     records: &[Record],
     header: &Header,
     config: &FilterConfig,
     options: &RunOptions,
 ) -> Result<Run, PipelineError> {
-    check(config, records, header)?;
+    config.validate()?;
     let pool = thread_pool(options.threads)?;
-    let white = resolve_white(config, records, header)?;
     let shared = Shared::new(records, header);
     let wanted = images_of(config);
-    let (decided, undecided): (Vec<_>, Vec<_>) =
-        wanted.iter().partition(|(m, _)| m.needs_decisions());
-    let (result, early) = pool.install(|| {
+    let (after, beside): (Vec<_>, Vec<_>) = wanted
+        .iter()
+        .partition(|(m, _)| m.needs_decisions() || m.needs_white());
+    let (main, early) = pool.install(|| {
         crate::par::join(
-            || {
-                replay(
+            || -> Result<_, PipelineError> {
+                check(config, records, header)?;
+                let white = resolve_white(config, records, header)?;
+                let result = replay(
                     records,
                     header,
                     config,
                     white,
                     options.exact_sigma,
                     options.progress,
-                )
+                );
+                Ok((result, white))
             },
             || {
                 let t = Instant::now();
@@ -360,11 +366,12 @@ pub fn run(
                 // Every sample accepted: decision-free images read no filtered image.
                 let rec = Reconstruction::all_accepted(mean, occupancy);
                 let core = Core::new(rec, t.elapsed().as_secs_f64(), 0.0);
-                let images = images(&Estimators::new(&shared, config, white, &core), &undecided);
+                let images = images(&Estimators::before_white(&shared, config, &core), &beside);
                 (images, core)
             },
         )
     });
+    let (result, white) = main?;
     options.progress.finish();
     let t = Instant::now();
     let replay_seconds = result.streaming_seconds + result.final_seconds;
@@ -382,7 +389,7 @@ pub fn run(
                 let rec = Reconstruction::new(records, header, filter, mean, occupancy, accepted);
                 let seconds = mean_seconds + t.elapsed().as_secs_f64();
                 let core = Core::new(rec, seconds, replay_seconds);
-                let late = images(&Estimators::new(&shared, config, white, &core), &decided);
+                let late = images(&Estimators::new(&shared, config, white, &core), &after);
                 (core, late)
             },
             || {
@@ -460,11 +467,13 @@ mod tests {
     use super::*;
     use crate::synth::SynthParams;
 
-    /// A run makes the decision-free images beside the replay from a core
-    /// whose filtered image is the mean: [`Method::needs_decisions`] must
-    /// name every image that reads a decision. Each image of `run` is the
-    /// one made after the replay from the true core, for any thread count,
-    /// and the images said to need decisions do differ.
+    /// A run makes some images beside the replay, from a core whose
+    /// filtered image is the mean and before the white is known:
+    /// [`Method::needs_decisions`] must name every image that reads a
+    /// decision, and [`Method::needs_white`] every one that reads the
+    /// white (which would panic there). Each image of `run` is the one made
+    /// after the replay from the true core, for any thread count, and the
+    /// images said to need decisions do differ.
     #[test]
     fn the_images_made_beside_the_replay_need_no_decision() {
         let synth = SynthParams {
