@@ -43,13 +43,15 @@ fn main() -> anyhow::Result<()> {
     let mut shares = Vec::new();
     for n in &args[1..] {
         let n: u32 = n.parse()?;
-        shares.push(ExactSigma::OneIn(n));
-        shares.extend(Strata::new(&h, n).map(ExactSigma::Strata));
+        shares.push((format!("one in {n} (hash)"), ExactSigma::OneIn(n)));
+        if let Some(s) = Strata::new(&h, n) {
+            shares.push((format!("one in {n} of each pixel"), ExactSigma::Strata(s)));
+        }
     }
     if shares.is_empty() {
-        shares.push(ExactSigma::for_map(&h));
+        shares.push(("the report's".into(), ExactSigma::for_map(&h)));
     }
-    for share in shares {
+    for (label, share) in shares {
         let est = map(share);
         let (mut rel, mut shift, mut logs) = (Vec::new(), Vec::new(), Vec::new());
         let mut empty = 0;
@@ -82,13 +84,7 @@ fn main() -> anyhow::Result<()> {
         }
         let mean_shift = shift.iter().sum::<f64>() / shift.len().max(1) as f64;
         println!(
-            "{path} {}: relative error median {:.4} p90 {:.4}; corr(log) {:.4}; ramp shift mean {:.4} p99 {:.4}; pixels without an estimate {empty} (ramp {:.3}..{:.3})",
-            match share {
-                ExactSigma::OneIn(n) => format!("one in {n} (hash)"),
-                ExactSigma::Strata(_) =>
-                    format!("one in {} of each pixel", share.share().unwrap_or(1)),
-                _ => "every sample".to_string(),
-            },
+            "{path} {label}: relative error median {:.4} p90 {:.4}; corr(log) {:.4}; ramp shift mean {:.4} p99 {:.4}; pixels without an estimate {empty} (ramp {:.3}..{:.3})",
             q(&mut rel, 0.5),
             q(&mut rel, 0.9),
             c / (vt * ve).sqrt(),

@@ -167,7 +167,7 @@ pub struct Strata {
 
 impl Strata {
     /// For a dump that declares pixel- or pass-major order and holds
-    /// exactly its film's samples, and n ≥ 2.
+    /// exactly its film's samples (at least one), and n ≥ 2.
     pub fn new(h: &Header, n: u32) -> Option<Strata> {
         let pass_major = match h.order {
             Order::PixelMajor => false,
@@ -175,7 +175,9 @@ impl Strata {
             Order::Unspecified => return None,
         };
         let pixels = h.pixels() as u64;
-        let complete = h.sample_count == pixels * h.frames as u64 * h.spp as u64;
+        // A valid header's film and frames fit; with spp they may not.
+        let film_samples = (pixels * h.frames as u64).checked_mul(h.spp as u64);
+        let complete = h.sample_count > 0 && film_samples == Some(h.sample_count);
         (n >= 2 && complete).then_some(Strata {
             n,
             pixels,
@@ -369,5 +371,14 @@ mod tests {
         h.spp = 15;
         h.sample_count = 8 * 8 * 15;
         assert_eq!(ExactSigma::for_map(&h), ExactSigma::All);
+        // spp × film past u64, an empty dump: no strata, and no panic.
+        let mut big = Header::still(8192, 8192, u32::MAX, Order::PassMajor);
+        big.frames = 1 << 20;
+        big.sample_count = 1;
+        assert_eq!(Strata::new(&big, 8), None);
+        assert_eq!(
+            Strata::new(&Header::still(8, 8, 64, Order::PassMajor), 8),
+            None
+        );
     }
 }

@@ -178,7 +178,7 @@ pub fn resolve_white(
     }
 }
 
-/// Checks `config` against the dump before any work: k below the number
+/// Checks `config` against the dump before the replay: k below the number
 /// of valid samples (else every sample is rejected), joint coordinates
 /// that stay finite in f32 on this film. Returns the number of valid
 /// samples.
