@@ -108,7 +108,8 @@ pub fn slice_svg(
     let mut acc = Vec::new();
     let mut rej = Vec::new();
     for (r, &d) in records.iter().zip(decisions) {
-        if r.validity(h) == Validity::Valid && r.y as u32 == row && r.t < 1.0 {
+        // The row first: it is cheap and rules out almost every record.
+        if r.y as u32 == row && r.t < 1.0 && r.validity(h) == Validity::Valid {
             let y = luminance([r.r as f64, r.g as f64, r.b as f64]).max(1e-4);
             if Decision::accepted(d) {
                 acc.push((r.x as f64, y));
