@@ -76,6 +76,18 @@ impl<'a> Shared<'a> {
             .get_or_init(|| timed(|| PixelGroups::new(self.records, self.header)))
     }
 
+    /// Makes now the shared work of `images` (as `images_of` lists them)
+    /// that reads only the samples: the confidence intervals. The pipeline
+    /// makes it beside the replay for the images that follow it.
+    pub fn prepare(&self, images: &[(Method, bool)]) {
+        if images
+            .iter()
+            .any(|(m, _)| Piece::of(*m).contains(&Piece::Interval))
+        {
+            self.interval();
+        }
+    }
+
     /// Every pixel's confidence interval, made once.
     fn interval(&self) -> &(Interval, f64) {
         self.interval.get_or_init(|| {

@@ -330,8 +330,11 @@ pub fn reconstruct(
 /// ([`Method::needs_white`]) are made beside the checks, the white and the
 /// replay, on the same threads, which take up their work where those leave
 /// a core waiting (the checks and the white are serial passes, and so is
-/// the replay's in-order pass); the others follow the replay, beside the
-/// σ map. A dump the checks refuse is refused once those images are made.
+/// the replay's in-order pass), as are the confidence intervals the later
+/// images need. After the replay, the images that need only the white and
+/// the σ map are made beside the filtered image, and the images that need
+/// the decisions follow it. A dump the checks refuse is refused once the
+/// first images are made.
 pub fn run(
     records: &[Record],
     header: &Header,
@@ -342,9 +345,13 @@ pub fn run(
     let pool = thread_pool(options.threads)?;
     let shared = Shared::new(records, header);
     let wanted = images_of(config);
-    let (after, beside): (Vec<_>, Vec<_>) = wanted
-        .iter()
-        .partition(|(m, _)| m.needs_decisions() || m.needs_white());
+    // Each image starts once what it reads exists: the samples (beside the
+    // replay), the white luminance (after it), or the decisions (after
+    // the filtered image).
+    let (decided, undecided): (Vec<_>, Vec<_>) =
+        wanted.iter().partition(|(m, _)| m.needs_decisions());
+    let (white_only, beside): (Vec<_>, Vec<_>) =
+        undecided.iter().partition(|(m, _)| m.needs_white());
     let (main, early) = pool.install(|| {
         crate::par::join(
             || -> Result<_, PipelineError> {
@@ -367,6 +374,8 @@ pub fn run(
                 let rec = Reconstruction::all_accepted(mean, occupancy);
                 let core = Core::new(rec, t.elapsed().as_secs_f64(), 0.0);
                 let images = images(&Estimators::before_white(&shared, config, &core), &beside);
+                // What the later images share that reads only the samples.
+                shared.prepare(&decided);
                 (images, core)
             },
         )
@@ -377,28 +386,38 @@ pub fn run(
     let replay_seconds = result.streaming_seconds + result.final_seconds;
     let accepted = |i: usize| Decision::accepted(result.decisions[i]);
     let (early, undecided_core) = early;
-    let Reconstruction {
-        mean, occupancy, ..
-    } = undecided_core.reconstruction;
     let mean_seconds = undecided_core.reconstruct_seconds;
-    // The σ map beside the filtered image and the images made from it.
-    let ((core, late), sigma_image) = pool.install(|| {
+    // The filtered image and the images made from it, beside the σ map and
+    // the images that needed only the white.
+    let ((core, late), (whitened, sigma_image)) = pool.install(|| {
         crate::par::join(
             || {
                 let filter = config.recon.filter();
+                let undecided = &undecided_core.reconstruction;
+                let (mean, occupancy) = (undecided.mean.clone(), undecided.occupancy.clone());
                 let rec = Reconstruction::new(records, header, filter, mean, occupancy, accepted);
                 let seconds = mean_seconds + t.elapsed().as_secs_f64();
                 let core = Core::new(rec, seconds, replay_seconds);
-                let late = images(&Estimators::new(&shared, config, white, &core), &after);
+                let late = images(&Estimators::new(&shared, config, white, &core), &decided);
                 (core, late)
             },
             || {
-                let sigma = result.sigma.as_ref();
-                sigma.map(|s| recon::sigma_map(records, header, s))
+                crate::par::join(
+                    || {
+                        images(
+                            &Estimators::new(&shared, config, white, &undecided_core),
+                            &white_only,
+                        )
+                    },
+                    || {
+                        let sigma = result.sigma.as_ref();
+                        sigma.map(|s| recon::sigma_map(records, header, s))
+                    },
+                )
             },
         )
     });
-    let mut images: Vec<MethodImage> = early?.into_iter().chain(late?).collect();
+    let mut images: Vec<MethodImage> = early?.into_iter().chain(whitened?).chain(late?).collect();
     images.sort_by_key(|e| wanted.iter().position(|&w| w == (e.method, e.denoised)));
     let metrics = match options.reference {
         Some(r) => images
