@@ -3,7 +3,9 @@
 //!
 //! A dump whose valid records already come pixel by pixel (pixel-major, or
 //! any order that happens to be) is used in place: only the first record
-//! index of each pixel is kept. Any other order is grouped with a counting
+//! index of each pixel is kept. So is a complete pass-major dump whose
+//! passes visit the pixels in raster order: a pixel's samples lie one pass
+//! apart. Any other order is grouped with a counting
 //! sort of record indices (4 bytes per valid record). Either way the dump is
 //! never copied, and per-pixel work runs in parallel with the same result
 //! for any thread count.
@@ -31,6 +33,9 @@ enum Layout {
     /// `starts[p]..starts[p + 1]` holds pixel p's valid records (and
     /// possibly invalid ones, which are skipped).
     Runs { starts: Vec<usize> },
+    /// Record i is sample s of pixel f·P + p when i = (f·spp + s)·P + p,
+    /// with P the pixels of a frame (or is invalid).
+    Strided { pixels: usize, spp: usize },
     /// `order[offsets[p]..offsets[p + 1]]` are pixel p's valid records.
     Sorted { offsets: Vec<usize>, order: Indices },
 }
@@ -50,7 +55,9 @@ impl<'a> PixelGroups<'a> {
         let pixels = header.pixels() * header.frames as usize;
         let layout = match runs(records, header, pixels) {
             Some(starts) => Layout::Runs { starts },
-            None => counting_sort(records, header, pixels),
+            None => {
+                strided(records, header).unwrap_or_else(|| counting_sort(records, header, pixels))
+            }
         };
         PixelGroups {
             records,
@@ -61,7 +68,7 @@ impl<'a> PixelGroups<'a> {
 
     /// True when the dump was grouped in place (no index array).
     pub fn in_place(&self) -> bool {
-        matches!(self.layout, Layout::Runs { .. })
+        !matches!(self.layout, Layout::Sorted { .. })
     }
 
     fn pixels(&self) -> usize {
@@ -80,6 +87,15 @@ impl<'a> PixelGroups<'a> {
         match &self.layout {
             Layout::Runs { starts } => {
                 for r in &self.records[starts[px]..starts[px + 1]] {
+                    if r.validity(self.header) == Validity::Valid {
+                        push(r);
+                    }
+                }
+            }
+            &Layout::Strided { pixels, spp } => {
+                let (frame, p) = (px / pixels, px % pixels);
+                for s in 0..spp {
+                    let r = &self.records[(frame * spp + s) * pixels + p];
                     if r.validity(self.header) == Validity::Valid {
                         push(r);
                     }
@@ -131,6 +147,23 @@ fn runs(records: &[Record], h: &Header, pixels: usize) -> Option<Vec<usize>> {
         }
     }
     Some(starts)
+}
+
+/// The strided layout if every valid record lies where a complete
+/// pass-major dump in raster order puts it, else None.
+fn strided(records: &[Record], h: &Header) -> Option<Layout> {
+    let (pixels, spp) = (h.pixels(), h.spp as usize);
+    let complete = pixels
+        .checked_mul(spp)
+        .and_then(|n| n.checked_mul(h.frames as usize));
+    if complete != Some(records.len()) || records.is_empty() {
+        return None;
+    }
+    let pass = pixels * spp;
+    let placed = records.iter().enumerate().all(|(i, r)| {
+        r.validity(h) != Validity::Valid || r.pixel_index(h) == i / pass * pixels + i % pixels
+    });
+    placed.then_some(Layout::Strided { pixels, spp })
 }
 
 fn counting_sort(records: &[Record], h: &Header, pixels: usize) -> Layout {
@@ -203,5 +236,54 @@ mod tests {
         let got = g.map(|c| c[0].clone());
         assert_eq!(got[0], vec![2.0, 1.0]);
         assert_eq!(got[3], vec![3.0, 4.0]);
+    }
+
+    /// A complete pass-major dump (two frames, invalid records) is grouped
+    /// in place, with the samples the counting sort gives; one record out
+    /// of place, or one missing, and it is sorted instead.
+    #[test]
+    fn a_pass_major_dump_is_grouped_in_place() {
+        let (w, hh, spp, frames) = (3usize, 2usize, 4usize, 2usize);
+        let h = Header {
+            spp: spp as u32,
+            frames: frames as u32,
+            ..header(w as u32, hh as u32)
+        };
+        let mut records = Vec::new();
+        for f in 0..frames {
+            for s in 0..spp {
+                for p in 0..w * hh {
+                    let (x, y) = ((p % w) as f32 + 0.25, (p / w) as f32 + 0.5);
+                    let v = (f * 100 + s * 10 + p) as f32;
+                    let t = if (s + p) % 5 == 3 {
+                        f32::NAN
+                    } else {
+                        f as f32 + 0.5
+                    };
+                    records.push(Record::new(x, y, t, [v, 0.0, 0.0]));
+                }
+            }
+        }
+        let pixels = w * hh * frames;
+        let g = PixelGroups::new(&records, &h);
+        assert!(g.in_place());
+        let want = PixelGroups {
+            records: &records,
+            header: &h,
+            layout: counting_sort(&records, &h, pixels),
+        };
+        let got = g.map(|c| c[0].clone());
+        assert_eq!(got, want.map(|c| c[0].clone()));
+        assert_eq!(got[7], vec![101.0, 111.0, 131.0]);
+        assert_eq!(
+            got[2],
+            vec![2.0, 22.0, 32.0],
+            "sample 1 of pixel 2 is invalid"
+        );
+
+        let mut moved = records.clone();
+        moved.swap(0, 1);
+        assert!(!PixelGroups::new(&moved, &h).in_place());
+        assert!(!PixelGroups::new(&records[1..], &h).in_place());
     }
 }
