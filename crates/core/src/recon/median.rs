@@ -12,11 +12,16 @@ use crate::dump::{Header, Record, Validity};
 /// assert_eq!(pathdensity_core::recon::median::median(&mut v), 2.25);
 /// ```
 pub fn median(v: &mut [f64]) -> f64 {
+    sort_total(v);
+    median_of_sorted(v)
+}
+
+/// The median of `v` sorted by [`sort_total`]; 0 for an empty slice.
+pub fn median_of_sorted(v: &[f64]) -> f64 {
     let n = v.len();
     if n == 0 {
         return 0.0;
     }
-    sort_total(v);
     if n % 2 == 1 {
         v[n / 2]
     } else {

@@ -27,12 +27,15 @@ pub fn sorted_group_means(ch: &Channels, groups: usize) -> Vec<[f64; 3]> {
         }
         *count += 1;
     }
-    let mut means: Vec<[f64; 3]> = sums
+    let mut means: Vec<(f64, [f64; 3])> = sums
         .into_iter()
-        .map(|(s, count)| s.map(|v| v / count as f64))
+        .map(|(s, count)| {
+            let mean = s.map(|v| v / count as f64);
+            (luminance(mean), mean)
+        })
         .collect();
-    means.sort_by(|a, b| luminance(*a).total_cmp(&luminance(*b)));
-    means
+    means.sort_by(|a, b| a.0.total_cmp(&b.0));
+    means.into_iter().map(|(_, mean)| mean).collect()
 }
 
 /// MoN: the median-luminance group mean; for an even count, the average
@@ -46,7 +49,11 @@ pub fn sorted_group_means(ch: &Channels, groups: usize) -> Vec<[f64; 3]> {
 /// assert_eq!(median_of_means(&ch, 3), [1.0; 3]);
 /// ```
 pub fn median_of_means(ch: &Channels, groups: usize) -> [f64; 3] {
-    let means = sorted_group_means(ch, groups);
+    median_of_sorted(&sorted_group_means(ch, groups))
+}
+
+/// MoN of group means sorted by [`sorted_group_means`].
+fn median_of_sorted(means: &[[f64; 3]]) -> [f64; 3] {
     let m = means.len();
     match m {
         0 => [0.0; 3],
@@ -86,7 +93,11 @@ pub fn gini(sorted: &[f64]) -> f64 {
 /// assert_eq!(gini_median_of_means(&ch, 4), [2.0; 3]);
 /// ```
 pub fn gini_median_of_means(ch: &Channels, groups: usize) -> [f64; 3] {
-    let means = sorted_group_means(ch, groups);
+    gini_median_of_sorted(&sorted_group_means(ch, groups))
+}
+
+/// G-MoN of group means sorted by [`sorted_group_means`].
+fn gini_median_of_sorted(means: &[[f64; 3]]) -> [f64; 3] {
     let m = means.len();
     if m == 0 {
         return [0.0; 3];
@@ -104,7 +115,10 @@ pub struct MonImages {
 }
 
 pub fn mon_images(groups: &PixelGroups, h: &Header, m: usize) -> MonImages {
-    let per_pixel = groups.map(|ch| (median_of_means(ch, m), gini_median_of_means(ch, m)));
+    let per_pixel = groups.map(|ch| {
+        let means = sorted_group_means(ch, m);
+        (median_of_sorted(&means), gini_median_of_sorted(&means))
+    });
     let mut mon = Image::for_header(h);
     let mut gmon = Image::for_header(h);
     for (px, (a, b)) in per_pixel.into_iter().enumerate() {

@@ -3,7 +3,7 @@
 
 use super::Image;
 use super::groups::PixelGroups;
-use super::median::{median, sort_total};
+use super::median::{median_of_sorted, sort_total};
 use crate::dump::Header;
 
 /// The α-trimmed mean of `v` (reordered in place): sort, drop ⌊α n⌋ values
@@ -17,11 +17,16 @@ use crate::dump::Header;
 /// assert_eq!(trimmed_mean(&mut v, 0.1), 5.5);
 /// ```
 pub fn trimmed_mean(v: &mut [f64], alpha: f64) -> f64 {
+    sort_total(v);
+    trimmed_mean_of_sorted(v, alpha)
+}
+
+/// [`trimmed_mean`] of `v` sorted by [`sort_total`].
+fn trimmed_mean_of_sorted(v: &[f64], alpha: f64) -> f64 {
     let n = v.len();
     if n == 0 {
         return 0.0;
     }
-    sort_total(v);
     let cut = (alpha * n as f64).floor() as usize;
     let kept = &v[cut..n - cut];
     kept.iter().sum::<f64>() / kept.len() as f64
@@ -39,10 +44,10 @@ pub fn robust_images(groups: &PixelGroups, h: &Header, alpha: f64) -> RobustImag
         let mut med = [0.0; 3];
         let mut trim = [0.0; 3];
         for c in 0..3 {
-            // Trimmed first: it sorts, and the median of sorted data is the
-            // same whatever sorted it.
-            trim[c] = trimmed_mean(&mut ch[c], alpha);
-            med[c] = median(&mut ch[c]);
+            // One sort for both.
+            sort_total(&mut ch[c]);
+            trim[c] = trimmed_mean_of_sorted(&ch[c], alpha);
+            med[c] = median_of_sorted(&ch[c]);
         }
         (med, trim)
     });
@@ -61,6 +66,7 @@ pub fn robust_images(groups: &PixelGroups, h: &Header, alpha: f64) -> RobustImag
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::recon::median::median;
 
     #[test]
     fn trimmed_mean_by_hand() {
