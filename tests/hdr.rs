@@ -9,7 +9,7 @@ mod common;
 use common::*;
 use pathdensity::config::{ColorSpace, FilterConfig, FinalPass, White};
 use pathdensity::density::evidence::{AllSamples, final_pass_against_all_with};
-use pathdensity::density::{Decision, ExactSigma, ReplayOptions, plain};
+use pathdensity::density::{Decision, ExactSigma, ReplayOptions, Sigmas, plain};
 use pathdensity::dump::{Header, Order, Record};
 use pathdensity::pipeline;
 use pathdensity::progress::Silent;
@@ -88,9 +88,24 @@ fn replay_all(
     r
 }
 
-/// The bits of every σ of a replay that kept them.
-fn bits(s: &Option<Vec<f64>>) -> Vec<u64> {
-    s.as_ref().unwrap().iter().map(|v| v.to_bits()).collect()
+/// The bits of the σ of each of `n` records of a replay that kept them
+/// (NaN's where it kept none).
+fn bits(s: &Option<Sigmas>, n: usize) -> Vec<u64> {
+    let dense = s.as_ref().unwrap().to_dense(n);
+    dense.iter().map(|v| v.to_bits()).collect()
+}
+
+/// `s` with the σ of the records `exact` does not ask for removed.
+fn only_wanted(s: &mut Option<Sigmas>, n: usize, exact: ExactSigma) {
+    if let Some(kept) = s {
+        let mut dense = kept.to_dense(n);
+        for (i, v) in dense.iter_mut().enumerate() {
+            if !exact.wants(i) {
+                *v = f64::NAN;
+            }
+        }
+        *kept = Sigmas::Dense(dense);
+    }
 }
 
 fn config(color_space: ColorSpace, final_pass: FinalPass, white: White) -> FilterConfig {
@@ -204,29 +219,17 @@ fn the_final_pass_against_all_agrees_with_the_plain_oracle() {
                         streamed.decisions, got.decisions,
                         "seed {seed} {space} k {k} streamed"
                     );
-                    let same_bits = |a: &Option<Vec<f64>>, b: &Option<Vec<f64>>| {
-                        a.as_ref()
-                            .unwrap()
-                            .iter()
-                            .zip(b.as_ref().unwrap())
-                            .all(|(x, y)| x.to_bits() == y.to_bits())
-                    };
+                    let n = recs.len();
                     assert!(
-                        same_bits(&streamed.sigma, &got.sigma),
+                        bits(&streamed.sigma, n) == bits(&got.sigma, n),
                         "seed {seed} {space} k {k} streamed σ"
                     );
                     let mut want = want.clone();
-                    if let Some(s) = want.sigma.as_mut() {
-                        for (i, v) in s.iter_mut().enumerate() {
-                            if !exact.wants(i) {
-                                *v = f64::NAN;
-                            }
-                        }
-                    }
+                    only_wanted(&mut want.sigma, n, exact);
                     assert_eq!(got.decisions, want.decisions, "seed {seed} {space} k {k}");
                     assert_eq!(
-                        bits(&got.sigma),
-                        bits(&want.sigma),
+                        bits(&got.sigma, n),
+                        bits(&want.sigma, n),
                         "seed {seed} {space} k {k}"
                     );
                     assert_eq!(got.counts, want.counts);
@@ -262,11 +265,7 @@ fn the_final_pass_against_all_merges_its_jobs_exactly() {
     let c = config(ColorSpace::Logluv, FinalPass::All, White::Fixed(1.0));
     let mut want = plain::replay_with(&recs, &h, &c.space(1.0), c.k, FinalPass::All);
     let share = ExactSigma::OneIn(3);
-    for (i, s) in want.sigma.as_mut().unwrap().iter_mut().enumerate() {
-        if !share.wants(i) {
-            *s = f64::NAN;
-        }
-    }
+    only_wanted(&mut want.sigma, recs.len(), share);
     for threads in [1, 2] {
         let pool = pipeline::thread_pool(threads).unwrap();
         for how in [AllSamples::Grid, AllSamples::Streamed] {
@@ -274,8 +273,8 @@ fn the_final_pass_against_all_merges_its_jobs_exactly() {
             assert_eq!(got.decisions, want.decisions, "{threads} threads {how:?}");
             assert_eq!(got.counts, want.counts);
             assert_eq!(
-                bits(&got.sigma),
-                bits(&want.sigma),
+                bits(&got.sigma, recs.len()),
+                bits(&want.sigma, recs.len()),
                 "{threads} threads {how:?}"
             );
         }

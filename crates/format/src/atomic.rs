@@ -186,12 +186,13 @@ impl Staging {
         let dir = self.dir.take().expect("committed once");
         let staged = dir.path().to_path_buf();
         let done = swap_in(&staged, &self.dest);
-        if done.is_ok() {
-            // After the swap the temporary name holds the previous run
-            // (or nothing): dropping `dir` removes it.
-            if !staged.exists() {
-                let _ = dir.keep();
-            }
+        if done.is_ok() && !staged.exists() {
+            let _ = dir.keep();
+        } else {
+            // The temporary name holds the previous run (or, if the swap
+            // failed, this one): removed while still registered, so that a
+            // SIGINT in the middle removes the rest.
+            drop(dir);
         }
         unregister(&staged);
         done

@@ -5,6 +5,7 @@
 
 use super::Decision;
 use super::FilterCounts;
+use super::Sigmas;
 use super::batch::{ACCEPTED, Batch, Worker};
 use super::index::NeighbourIndex;
 use super::sigma::Goal;
@@ -13,7 +14,7 @@ use crate::dump::Validity;
 /// The streaming pass's results, filled in file order.
 pub(super) struct Streaming<'a> {
     pub(super) decisions: &'a mut [u8],
-    pub(super) sigma: Option<&'a mut [f64]>,
+    pub(super) sigma: Option<&'a mut Sigmas>,
     pub(super) counts: &'a mut FilterCounts,
     /// Record index of every stored point, by id.
     pub(super) stored_at: &'a mut Vec<u64>,
@@ -80,7 +81,7 @@ pub(super) fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
         // have found σ too, or not, depending on the order of work.
         if let (Some(sig), Some(v), Goal::Exact) = (out.sigma.as_mut(), found.verdict.sigma(), goal)
         {
-            sig[rec] = v;
+            sig.set(rec, v);
         }
         if found.verdict.accepted() {
             out.decisions[rec] = Decision::AcceptedStreaming as u8;

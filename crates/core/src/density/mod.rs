@@ -15,12 +15,14 @@ pub mod evidence;
 mod in_order;
 pub mod index;
 mod kbest;
+mod kept;
 pub mod plain;
 mod schedule;
 mod seeds;
 pub mod sigma;
 
 pub use index::IndexKind;
+pub use kept::Sigmas;
 
 use index::grid::Grid;
 use index::kdtree::KdTree;
@@ -257,9 +259,8 @@ pub struct FilterCounts {
 pub struct FilterResult {
     /// One [`Decision`] byte per record, in file order.
     pub decisions: Vec<u8>,
-    /// With `exact_sigma`: the σ that decided each record it asks for (NaN
-    /// for the others and for invalid records).
-    pub sigma: Option<Vec<f64>>,
+    /// With `exact_sigma`: the σ that decided each record it asks for.
+    pub sigma: Option<Sigmas>,
     pub counts: FilterCounts,
     pub streaming_seconds: f64,
     pub final_seconds: f64,

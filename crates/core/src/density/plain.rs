@@ -96,7 +96,7 @@ fn replay_in<const D: usize>(
     counts.stored = stored.len() as u64;
     FilterResult {
         decisions,
-        sigma: Some(sigmas),
+        sigma: Some(super::Sigmas::Dense(sigmas)),
         counts,
         streaming_seconds,
         final_seconds: t1.elapsed().as_secs_f64(),

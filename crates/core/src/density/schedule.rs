@@ -22,6 +22,7 @@ use std::time::Instant;
 
 use crate::par::prelude::*;
 
+use super::Sigmas;
 use super::batch::{Batch, SUB_BLOCK, Worker};
 use super::deferral::Deferral;
 use super::in_order::{Streaming, decide_in_order};
@@ -43,7 +44,7 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
     let exact = params.exact_sigma;
     let n = records.len();
     let mut decisions = vec![Decision::Invalid as u8; n];
-    let mut sigma = exact.any().then(|| vec![f64::NAN; n]);
+    let mut sigma = exact.any().then(|| Sigmas::new(exact, n));
     let mut counts = FilterCounts {
         records: n as u64,
         ..Default::default()
@@ -90,7 +91,7 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
         let [cur, next, after] = &mut batches;
         let mut out = Streaming {
             decisions: &mut decisions,
-            sigma: sigma.as_deref_mut(),
+            sigma: sigma.as_mut(),
             counts: &mut counts,
             stored_at: &mut stored_at,
         };
@@ -179,7 +180,7 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
         .collect();
     for (&rec, v) in stored_at.iter().zip(&finals) {
         if let (Some(sig), Some(s), true) = (sigma.as_mut(), v.sigma(), exact.wants(rec as usize)) {
-            sig[rec as usize] = s;
+            sig.set(rec as usize, s);
         }
         if v.accepted() {
             decisions[rec as usize] = Decision::AcceptedFinal as u8;
@@ -189,6 +190,9 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
         }
     }
     counts.stored = index.len() as u64;
+    if let Some(s) = sigma.as_mut() {
+        s.finish();
+    }
     FilterResult {
         decisions,
         sigma,

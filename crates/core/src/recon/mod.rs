@@ -11,6 +11,7 @@ pub mod mon;
 pub mod robust;
 pub mod rwmc;
 
+use crate::density::Sigmas;
 use crate::dump::{Header, Record, Validity};
 pub use pathdensity_format::image::{Image, stored};
 
@@ -208,9 +209,9 @@ impl Reconstruction {
 
 /// The σ map (the paper's Figure 6): per pixel, the mean of the finite σ of
 /// the valid samples it contains, summed in file order; 0 where none is finite.
-pub fn sigma_map(records: &[Record], h: &Header, sigma: &[f64]) -> Image {
+pub fn sigma_map(records: &[Record], h: &Header, sigma: &Sigmas) -> Image {
     let mut sum = vec![(0.0f64, 0u32); h.pixels() * h.frames as usize];
-    for (r, &s) in records.iter().zip(sigma) {
+    for (r, s) in sigma.kept().map(|(i, s)| (&records[i], s)) {
         if s.is_finite() && r.validity(h) == Validity::Valid {
             let e = &mut sum[r.pixel_index(h)];
             e.0 += s;

@@ -92,6 +92,9 @@ pub fn final_pass_against_all_with(
             streamed::against_all::<6>(records, header, space, k, exact, result)
         }
     }
+    if let Some(s) = result.sigma.as_mut() {
+        s.finish();
+    }
     result.final_seconds += t.elapsed().as_secs_f64();
 }
 
@@ -124,7 +127,7 @@ fn record(
         counts.rejected -= 1;
     }
     if let (Some(sig), Some(s), true) = (result.sigma.as_mut(), sigma, exact.wants(i)) {
-        sig[i] = s;
+        sig.set(i, s);
     }
     if accepted {
         result.decisions[i] = Decision::AcceptedFinal as u8;
