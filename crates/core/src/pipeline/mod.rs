@@ -4,20 +4,21 @@
 //! sweeps, the equal-time comparison and the regression fixtures call the
 //! same pieces ([`replay`], [`reconstruct`], [`estimate::Estimators`]).
 
+mod check;
 pub mod estimate;
 pub mod methods;
 
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use crate::config::{ConfigError, Denoise, FilterConfig, FinalPass, White};
+use crate::config::{ConfigError, Denoise, FilterConfig, FinalPass};
 use crate::density::{self, Decision, ExactSigma, FilterCounts, FilterResult, ReplayOptions};
-use crate::dump::{Header, Record, Validity};
-use crate::joint::white::auto_white;
+use crate::dump::{Header, Record};
 use crate::metrics::{self, ImageMetrics};
 use crate::par::prelude::*;
 use crate::progress::Progress;
 use crate::recon::{self, Image, Reconstruction};
+pub use check::{check, check_counted, k_fits, resolve_white};
 use estimate::{Core, Estimators, Shared};
 use methods::Method;
 
@@ -159,94 +160,6 @@ pub fn thread_pool(threads: usize) -> Result<crate::par::ThreadPool, PipelineErr
         let _ = threads;
         Ok(crate::par::ThreadPool)
     }
-}
-
-/// The white luminance `config` asks for on these records. `auto` needs
-/// a valid sample of positive luminance.
-pub fn resolve_white(
-    config: &FilterConfig,
-    records: &[Record],
-    header: &Header,
-) -> Result<f64, ConfigError> {
-    match config.white {
-        White::Fixed(v) => Ok(v),
-        White::Auto => auto_white(records, header).ok_or_else(|| ConfigError {
-            field: "white",
-            problem: "auto needs a valid sample of positive luminance, and the dump has none"
-                .into(),
-        }),
-    }
-}
-
-/// Checks `config` against the dump before the replay: k below the number
-/// of valid samples (else every sample is rejected), joint coordinates
-/// that stay finite in f32 on this film. Returns the number of valid
-/// samples.
-pub fn check(
-    config: &FilterConfig,
-    records: &[Record],
-    header: &Header,
-) -> Result<u64, PipelineError> {
-    config.validate()?;
-    let valid = records
-        .iter()
-        .filter(|r| r.validity(header) == Validity::Valid)
-        .count() as u64;
-    check_counted(config, header, valid)?;
-    Ok(valid)
-}
-
-/// k against the number of valid samples: at or above it every σ is +∞
-/// and every sample rejected.
-pub fn k_fits(k: usize, valid: u64) -> Result<(), PipelineError> {
-    if valid == 0 {
-        return Err(PipelineError::NoValidSample);
-    }
-    if k as u64 >= valid {
-        return Err(ConfigError {
-            field: "k",
-            problem: format!(
-                "{} needs more than {valid} valid samples: every sample would be rejected",
-                k
-            ),
-        }
-        .into());
-    }
-    Ok(())
-}
-
-/// [`check`] for a caller that has counted the valid samples already (a
-/// sweep, once for all its configurations); `config` is valid.
-pub fn check_counted(
-    config: &FilterConfig,
-    header: &Header,
-    valid: u64,
-) -> Result<(), PipelineError> {
-    k_fits(config.k, valid)?;
-    // Coordinates beyond this would round to ±∞ in f32 (docs/filter.md, F4).
-    const MAX_COORD: f64 = 1e30;
-    let film = header.width.max(header.height) as f64;
-    if film / config.sigma_image > MAX_COORD {
-        return Err(ConfigError {
-            field: "sigma_image",
-            problem: format!(
-                "{:?} is too small for a {film}-pixel film: image coordinates would overflow",
-                config.sigma_image
-            ),
-        }
-        .into());
-    }
-    if header.animated() && header.frames as f64 / config.sigma_time > MAX_COORD {
-        return Err(ConfigError {
-            field: "sigma_time",
-            problem: format!(
-                "{:?} is too small for {} frames: time coordinates would overflow",
-                config.sigma_time, header.frames
-            ),
-        }
-        .into());
-    }
-    Ok(())
 }
 
 /// What a user should hear about a run that succeeded: most samples
