@@ -64,7 +64,7 @@ pub fn bilateral(img: &Image, occupancy: &[u32], p: BilateralParams, white: f64)
     out
 }
 
-/// One frame's pixel pairs within a window, weighed once each.
+/// The image's pixel pairs within a window, each weighed once.
 struct Pairs<'a> {
     img: &'a Image,
     occupancy: &'a [u32],
@@ -77,8 +77,9 @@ struct Pairs<'a> {
 }
 
 impl Pairs<'_> {
-    /// The weight of pixels `a` and `b` (flat indices) at offset (dx, dy),
-    /// the same bits from either side.
+    /// The weight of pixels `a` and `b` (flat indices), `b` lying `dx −
+    /// radius` columns and `dy − radius` rows from `a`: the same bits from
+    /// either side.
     #[inline]
     fn weight(&self, a: usize, b: usize, dx: usize, dy: usize) -> f64 {
         let de2: f64 = (0..3)
