@@ -75,11 +75,11 @@ pub(super) fn against_all<const D: usize>(
     let cells = QueryCells::new(extent, D - 3, &queries);
     let jobs = JOBS_PER_THREAD * crate::par::current_num_threads();
     let per_job = records.len().div_ceil(jobs).max(1);
-    let partial: Vec<Nearest> = records
+    let partial: Vec<Vec<KBest>> = records
         .par_chunks(per_job)
         .enumerate()
         .map(|(c, chunk)| {
-            let mut kbs = Nearest::new(k, queries.len());
+            let mut kbs = vec![KBest::new(k); queries.len()];
             for (j, r) in chunk.iter().enumerate() {
                 if r.validity(header) != Validity::Valid {
                     continue;
@@ -93,7 +93,7 @@ pub(super) fn against_all<const D: usize>(
                     }
                     let d2 = dist2(&p, &query.p);
                     if d2 <= query.reach2 {
-                        kbs.offer(q as usize, d2);
+                        kbs[q as usize].push(d2, u32::MAX);
                     }
                 }
             }
@@ -106,7 +106,7 @@ pub(super) fn against_all<const D: usize>(
         .map(|q| {
             let mut kb = KBest::new(k);
             for part in &partial {
-                for &d2 in part.of(q) {
+                for &d2 in part[q].as_slice() {
                     kb.push(d2, u32::MAX);
                 }
             }
@@ -116,45 +116,6 @@ pub(super) fn against_all<const D: usize>(
         .collect();
     for (query, &sigma) in queries.iter().zip(&verdicts) {
         super::record(result, exact, query.rec, sigma < 1.0, Some(sigma));
-    }
-}
-
-/// Each query's k smallest squared distances offered, ascending, in one
-/// array (a `KBest` per query and job held about three times the memory).
-/// Ties keep the order they were offered in, as `KBest` does.
-struct Nearest {
-    k: usize,
-    /// k per query; +∞ where fewer were offered (no offer is +∞: each is
-    /// within a finite reach).
-    d2: Vec<f64>,
-}
-
-impl Nearest {
-    fn new(k: usize, queries: usize) -> Nearest {
-        Nearest {
-            k,
-            d2: vec![f64::INFINITY; k * queries],
-        }
-    }
-
-    fn offer(&mut self, q: usize, d2: f64) {
-        let best = &mut self.d2[q * self.k..(q + 1) * self.k];
-        let mut i = self.k - 1;
-        if d2 >= best[i] {
-            return;
-        }
-        while i > 0 && best[i - 1] > d2 {
-            best[i] = best[i - 1];
-            i -= 1;
-        }
-        best[i] = d2;
-    }
-
-    /// Query `q`'s distances, ascending.
-    fn of(&self, q: usize) -> impl Iterator<Item = &f64> {
-        self.d2[q * self.k..(q + 1) * self.k]
-            .iter()
-            .take_while(|d2| d2.is_finite())
     }
 }
 
