@@ -52,11 +52,16 @@ impl Sigmas {
     /// once every σ is set, before reading.
     pub fn finish(&mut self) {
         if let Sigmas::Sparse(v) = self {
-            // Stable: a record's pairs stay in the order they were set.
+            // Stable: a record's pairs stay in the order they were set, and
+            // the last one set replaces the one kept.
             v.sort_by_key(|&(rec, _)| rec);
-            v.reverse();
-            v.dedup_by_key(|&mut (rec, _)| rec);
-            v.reverse();
+            v.dedup_by(|later, kept| {
+                let same = later.0 == kept.0;
+                if same {
+                    *kept = *later;
+                }
+                same
+            });
         }
     }
 
