@@ -1,0 +1,214 @@
+//! Which samples' exact σ a replay computes (docs/filter.md §2): none,
+//! every one (`--sigma-map`), or the report's σ map's share, picked from
+//! the record index alone so that they are the same for any thread count.
+
+use super::sigma::Goal;
+use crate::dump::{Header, Order};
+
+/// Which samples' exact σ a replay computes. None of these changes a
+/// decision: a search that only decides stops as soon as σ < 1 or σ ≥ 1
+/// is proven, one that wants σ finds the k nearest.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ExactSigma {
+    /// No σ: the fastest replay.
+    #[default]
+    None,
+    /// Every valid sample's (`--sigma-map`).
+    All,
+    /// About one valid sample in n (n ≥ 2), picked by a hash of its record
+    /// index, so the same ones for any order of work and thread count.
+    OneIn(u32),
+    /// Exactly one in n of each pixel's samples, where the dump's declared
+    /// order tells which sample of which pixel a record is.
+    Strata(Strata),
+}
+
+impl ExactSigma {
+    /// The HTML report's σ map (docs/filter.md §3): 8 exact σ in each
+    /// pixel where the dump's order tells which samples those are, else
+    /// about 16 (so that, picked by a hash, none misses a pixel); every σ
+    /// when the dump has no more than that.
+    pub fn for_map(h: &Header) -> ExactSigma {
+        match Strata::new(h, h.spp / 8) {
+            Some(s) => ExactSigma::Strata(s),
+            None if h.spp / 16 >= 2 => ExactSigma::OneIn(h.spp / 16),
+            None => ExactSigma::All,
+        }
+    }
+
+    /// Whether any σ is computed.
+    pub fn any(self) -> bool {
+        self != ExactSigma::None
+    }
+
+    /// One in how many samples has its σ computed (None: all or none).
+    pub fn share(self) -> Option<u32> {
+        match self {
+            ExactSigma::OneIn(n) => Some(n),
+            ExactSigma::Strata(s) => Some(s.n),
+            ExactSigma::None | ExactSigma::All => None,
+        }
+    }
+
+    /// Whether record `rec`'s exact σ is computed.
+    #[inline]
+    pub fn wants(self, rec: usize) -> bool {
+        match self {
+            ExactSigma::None => false,
+            ExactSigma::All => true,
+            ExactSigma::OneIn(n) => mix(rec as u64).is_multiple_of(n as u64),
+            ExactSigma::Strata(s) => s.wants(rec as u64),
+        }
+    }
+
+    /// What the search of record `rec` must establish.
+    #[inline]
+    pub(crate) fn goal(self, rec: usize) -> Goal {
+        if self.wants(rec) {
+            Goal::Exact
+        } else {
+            Goal::Decide
+        }
+    }
+}
+
+/// One in n of every pixel's samples, by their place in a pixel- or
+/// pass-major dump: sample s of pixel p when (s + mix(p)) ≡ 0 (mod n), so
+/// each pixel has ⌊spp / n⌋ or ⌈spp / n⌉ of them, from passes that differ
+/// from pixel to pixel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Strata {
+    n: u32,
+    /// Pixels of a frame.
+    pixels: u64,
+    spp: u64,
+    pass_major: bool,
+}
+
+impl Strata {
+    /// For a dump that declares pixel- or pass-major order and holds
+    /// exactly its film's samples (at least one), and n ≥ 2.
+    pub fn new(h: &Header, n: u32) -> Option<Strata> {
+        let pass_major = match h.order {
+            Order::PixelMajor => false,
+            Order::PassMajor => true,
+            Order::Unspecified => return None,
+        };
+        let pixels = h.pixels() as u64;
+        // A valid header's film and frames fit; with spp they may not.
+        let film_samples = (pixels * h.frames as u64).checked_mul(h.spp as u64);
+        let complete = h.sample_count > 0 && film_samples == Some(h.sample_count);
+        (n >= 2 && complete).then_some(Strata {
+            n,
+            pixels,
+            spp: h.spp as u64,
+            pass_major,
+        })
+    }
+
+    #[inline]
+    fn wants(self, rec: u64) -> bool {
+        // Pixel-major: rec = p·spp + s (p counting frames in turn);
+        // pass-major: rec = (f·spp + s)·pixels + p within frame f.
+        let (pixel, s) = if self.pass_major {
+            let (pass, p) = (rec / self.pixels, rec % self.pixels);
+            let (f, s) = (pass / self.spp, pass % self.spp);
+            (f * self.pixels + p, s)
+        } else {
+            (rec / self.spp, rec % self.spp)
+        };
+        (s + mix(pixel) % self.n as u64).is_multiple_of(self.n as u64)
+    }
+}
+
+/// SplitMix64's finaliser: consecutive indices to unrelated bits, so that
+/// one in n of them is picked evenly over pixels in any dump order.
+#[inline]
+fn mix(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58476d1ce4e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d049bb133111eb);
+    z ^ (z >> 31)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dump::Record;
+    use crate::synth::SynthParams;
+
+    /// One in n of each pixel's samples, in both declared orders and with
+    /// frames, found from the record index alone; the samples picked are
+    /// not the same pass in every pixel.
+    #[test]
+    fn strata_pick_one_in_n_of_every_pixels_samples() {
+        for order in [Order::PixelMajor, Order::PassMajor] {
+            let synth = SynthParams {
+                width: 5,
+                height: 4,
+                frames: 3,
+                spp: 16,
+                order,
+                ..SynthParams::default()
+            };
+            let (h, records): (Header, Vec<Record>) = (synth.header(), synth.records().collect());
+            for n in [2, 3, 4, 8] {
+                let share = ExactSigma::Strata(Strata::new(&h, n).unwrap());
+                let mut per_pixel = vec![Vec::new(); h.pixels() * h.frames as usize];
+                for (i, r) in records.iter().enumerate() {
+                    if share.wants(i) {
+                        let (px, s) = (r.pixel_index(&h), per_pixel[r.pixel_index(&h)].len());
+                        per_pixel[px].push((i, s));
+                    }
+                }
+                let (lo, hi) = (16 / n as usize, 16usize.div_ceil(n as usize));
+                assert!(
+                    per_pixel.iter().all(|v| (lo..=hi).contains(&v.len())),
+                    "{order} n {n}"
+                );
+                let firsts: std::collections::BTreeSet<usize> = per_pixel
+                    .iter()
+                    .map(|v| {
+                        // Which of the pixel's samples came first.
+                        let first = v[0].0;
+                        records[..first]
+                            .iter()
+                            .filter(|r| r.pixel_index(&h) == records[first].pixel_index(&h))
+                            .count()
+                    })
+                    .collect();
+                assert!(firsts.len() > 1, "{order} n {n}: the same pass everywhere");
+            }
+        }
+    }
+
+    /// Without a declared order, or with samples other than the film's,
+    /// the report's map falls back to about one in ⌊spp / 16⌋ by a hash.
+    #[test]
+    fn the_maps_share_needs_a_declared_complete_order() {
+        let mut h = Header::still(8, 8, 64, Order::PassMajor);
+        h.sample_count = 8 * 8 * 64;
+        assert!(matches!(ExactSigma::for_map(&h), ExactSigma::Strata(s) if s.n == 8));
+        h.sample_count -= 1;
+        assert_eq!(ExactSigma::for_map(&h), ExactSigma::OneIn(4));
+        h.order = Order::Unspecified;
+        h.sample_count += 1;
+        assert_eq!(ExactSigma::for_map(&h), ExactSigma::OneIn(4));
+        h.spp = 16;
+        assert_eq!(ExactSigma::for_map(&h), ExactSigma::All);
+        h.order = Order::PixelMajor;
+        h.sample_count = 8 * 8 * 16;
+        assert_eq!(ExactSigma::for_map(&h).share(), Some(2));
+        h.spp = 15;
+        h.sample_count = 8 * 8 * 15;
+        assert_eq!(ExactSigma::for_map(&h), ExactSigma::All);
+        // spp × film past u64, an empty dump: no strata, and no panic.
+        let mut big = Header::still(8192, 8192, u32::MAX, Order::PassMajor);
+        big.frames = 1 << 20;
+        big.sample_count = 1;
+        assert_eq!(Strata::new(&big, 8), None);
+        assert_eq!(
+            Strata::new(&Header::still(8, 8, 64, Order::PassMajor), 8),
+            None
+        );
+    }
+}
