@@ -114,6 +114,7 @@ mod sequential {
         }
 
         impl<T> IntoParallelIterator for std::ops::Range<T> where std::ops::Range<T>: Iterator {}
+        impl<T> IntoParallelIterator for Vec<T> {}
 
         pub trait ParallelIterator: Iterator + Sized {
             /// `map` with a state made once by `init` (rayon makes one per

@@ -15,10 +15,6 @@ use crate::par::prelude::*;
 /// (docs/BENCHMARKS.md, "The default run").
 const SAMPLES_PER_CELL: f64 = 64.0;
 
-/// Records whose joint-space points are made at once while building the
-/// grid: the block before is inserted meanwhile.
-const BUILD_BLOCK: usize = 1 << 14;
-
 /// The log2 of the cell side (joint units) that keeps `valid` samples over
 /// `extent`'s first `axes` axes within [`SAMPLES_PER_CELL`] a cell.
 fn cell_side(extent: [f64; 3], axes: usize, valid: u64) -> i32 {
@@ -40,56 +36,20 @@ pub(super) fn against_all<const D: usize>(
 ) {
     let extent = space.extent(header);
     let side = cell_side(extent, D - 3, result.counts.valid);
-    let mut index = Grid::<D>::with_side(extent, side);
-    // Each cell's list sized exactly and no second copy of the points:
-    // the grid is built once and only searched (about 24 bytes a sample).
-    // The joint-space points (the colour transform is most of the build's
-    // cost) are made in parallel a block at a time, while the block before
-    // is inserted in file order, so ids and cell lists are those of a
-    // sequential build.
-    let block = |b: usize| {
-        let n = records.len();
-        &records[(b * BUILD_BLOCK).min(n)..((b + 1) * BUILD_BLOCK).min(n)]
-    };
-    let blocks = records.len().div_ceil(BUILD_BLOCK);
-    // Each valid record's point by `f`, in parallel, in file order.
-    let points_of = |b: usize, f: &(dyn Fn(&Record) -> [f32; D] + Sync)| {
-        block(b)
-            .par_iter()
-            .map(|r| (r.validity(header) == Validity::Valid).then(|| f(r)))
-            .collect::<Vec<_>>()
-    };
-    let mut counts = vec![0u32; index.cell_count()];
-    for b in 0..blocks {
-        for p in points_of(b, &|r| space.image_point::<D>(r))
-            .iter()
-            .flatten()
-        {
-            counts[index.cell(p)] += 1;
-        }
-    }
-    index.reserve(&counts);
-    drop(counts);
-    // (record, its id in the index) of every stored sample to search.
-    let mut stored: Vec<(usize, u32)> = Vec::new();
-    let point = |r: &Record| space.point::<D>(r);
-    let mut points = points_of(0, &point);
-    for b in 0..blocks {
-        let ((), next) = crate::par::join(
-            || {
-                for (j, p) in points.iter().enumerate() {
-                    let Some(p) = p else { continue };
-                    let id = index.insert(*p);
-                    let i = b * BUILD_BLOCK + j;
-                    if super::stored(result, i) && super::needs_search(result, exact, i) {
-                        stored.push((i, id));
-                    }
-                }
-            },
-            || points_of(b + 1, &point),
-        );
-        points = next;
-    }
+    // Built whole, in parallel, each cell's points in one array and no
+    // second copy of them (about 24 bytes a sample): the cells are counted
+    // from the image coordinates alone, then the joint-space points (the
+    // colour transform is most of the build's cost) are placed.
+    let valid = |r: &Record| r.validity(header) == Validity::Valid;
+    let (index, stored) = Grid::<D>::packed(
+        extent,
+        side,
+        records,
+        |r| valid(r).then(|| space.image_point::<D>(r)),
+        |r| valid(r).then(|| space.point::<D>(r)),
+        // The stored samples to search, with their ids.
+        |i| super::stored(result, i) && super::needs_search(result, exact, i),
+    );
     let verdicts: Vec<_> = stored
         .par_iter()
         .map_init(

@@ -13,10 +13,13 @@
 //! along one axis; rounding is monotone, so its computed distance is at least
 //! `sqrt(g * g)` computed the same way. That is the search's `bound`.
 
+use std::mem::MaybeUninit;
+
 use super::tile::{Entry, Tile};
 use super::{Found, NeighbourIndex, offer_suffix};
 use crate::density::sigma::{Goal, KBest, Sum, Verdict, judge};
 use crate::joint::dist2;
+use crate::par::prelude::*;
 
 /// Radius in cells of the block a [`Tile`] gathers: 3 × 3 cells, or
 /// 3 × 3 × 3 for animations (why not 5 × 5: docs/BENCHMARKS.md, "The
@@ -32,16 +35,27 @@ pub struct Grid<const D: usize> {
     side: [f64; 3],
     inv: [f64; 3],
     dims: [usize; 3],
-    cells: Vec<Vec<Entry<D>>>,
+    cells: Cells<D>,
     /// The id of each cell's last point: rechecks find the cells that
-    /// changed without touching the others' lists.
+    /// changed without touching the others' lists (growing grids only).
     newest: Vec<Option<u32>>,
-    /// Every point by id, unless [`Grid::reserve`] dropped it (then the
-    /// cells hold the only copy).
+    /// Every point by id (growing grids only: a packed grid's cells hold
+    /// the only copy).
     arena: Vec<[f32; D]>,
-    keep_arena: bool,
     /// Points inserted.
     len: usize,
+}
+
+/// Where a grid keeps its points.
+enum Cells<const D: usize> {
+    /// A list per cell, growing as points are inserted.
+    Lists(Vec<Vec<Entry<D>>>),
+    /// Every cell's points in one array, cell after cell:
+    /// `entries[starts[c]..starts[c + 1]]` ([`Grid::packed`]).
+    Packed {
+        entries: Vec<Entry<D>>,
+        starts: Vec<usize>,
+    },
 }
 
 // Axis loops index several parallel arrays (side, dims, cell coordinates).
@@ -59,6 +73,15 @@ impl<const D: usize> Grid<D> {
     /// larger, to stay within the cell limit): smaller cells for denser
     /// point sets.
     pub fn with_side(extent: [f64; 3], log2_side: i32) -> Grid<D> {
+        let mut grid = Grid::empty(extent, log2_side);
+        let n = grid.cell_count();
+        grid.cells = Cells::Lists((0..n).map(|_| Vec::new()).collect());
+        grid.newest = vec![None; n];
+        grid
+    }
+
+    /// The cells of [`Grid::with_side`], with no storage yet.
+    fn empty(extent: [f64; 3], log2_side: i32) -> Grid<D> {
         let axes = if D == 6 { 3 } else { 2 };
         // Coordinates are f32, clamped to the finite range (docs/filter.md,
         // F4): no extent goes beyond it, so doubling the side ends.
@@ -86,18 +109,128 @@ impl<const D: usize> Grid<D> {
             dims = dims_for(&side);
         }
         let inv = side.map(|s| 1.0 / s);
-        let n = dims.iter().product();
         Grid {
             axes,
             side,
             inv,
             dims,
-            cells: (0..n).map(|_| Vec::new()).collect(),
-            newest: vec![None; n],
+            cells: Cells::Lists(Vec::new()),
+            newest: Vec::new(),
             arena: Vec::new(),
-            keep_arena: true,
             len: 0,
         }
+    }
+
+    /// A grid built whole over `items`, searched and never inserted into,
+    /// with every cell's points in one array and no second copy of them
+    /// (4·D + 4 bytes a point). The points are `point(item)` for the items
+    /// that have one, their ids in item order; `cell_point(item)` must give
+    /// the same image (and time) coordinates, which fix the cell, and may
+    /// skip the colour. The items are counted and placed in chunks, in
+    /// parallel, each cell's points in id order: the grid inserting them
+    /// one by one would make, for any number of threads. Also returns the
+    /// (item, id) of the items `keep` picks, in item order.
+    pub fn packed<T: Sync>(
+        extent: [f64; 3],
+        log2_side: i32,
+        items: &[T],
+        cell_point: impl Fn(&T) -> Option<[f32; D]> + Sync,
+        point: impl Fn(&T) -> Option<[f32; D]> + Sync,
+        keep: impl Fn(usize) -> bool + Sync,
+    ) -> (Grid<D>, Vec<(usize, u32)>) {
+        let chunks = crate::par::current_num_threads().max(1);
+        Grid::packed_in(extent, log2_side, items, chunks, cell_point, point, keep)
+    }
+
+    /// [`Grid::packed`] with the items cut into `chunks` chunks.
+    fn packed_in<T: Sync>(
+        extent: [f64; 3],
+        log2_side: i32,
+        items: &[T],
+        chunks: usize,
+        cell_point: impl Fn(&T) -> Option<[f32; D]> + Sync,
+        point: impl Fn(&T) -> Option<[f32; D]> + Sync,
+        keep: impl Fn(usize) -> bool + Sync,
+    ) -> (Grid<D>, Vec<(usize, u32)>) {
+        let mut grid = Grid::empty(extent, log2_side);
+        let cells = grid.cell_count();
+        let chunk_len = items.len().div_ceil(chunks).max(1);
+        let parts: Vec<&[T]> = items.chunks(chunk_len).collect();
+        // How many points each chunk puts in each cell.
+        let counts: Vec<Vec<u32>> = parts
+            .par_iter()
+            .map(|part| {
+                let mut n = vec![0u32; cells];
+                for p in part.iter().filter_map(&cell_point) {
+                    n[grid.cell(&p)] += 1;
+                }
+                n
+            })
+            .collect();
+        let per_part: Vec<usize> = counts
+            .iter()
+            .map(|n| n.iter().map(|&c| c as usize).sum())
+            .collect();
+        let total: usize = per_part.iter().sum();
+        assert!(
+            total <= u32::MAX as usize,
+            "more than 2^32 samples in one grid"
+        );
+        // Cell by cell, each chunk's share of the array, in chunk order.
+        let mut entries: Vec<Entry<D>> = Vec::with_capacity(total);
+        let mut starts = Vec::with_capacity(cells + 1);
+        let mut slots: Vec<Vec<&mut [MaybeUninit<Entry<D>>]>> =
+            parts.iter().map(|_| Vec::with_capacity(cells)).collect();
+        let mut rest = &mut entries.spare_capacity_mut()[..total];
+        let mut at = 0;
+        for c in 0..cells {
+            starts.push(at);
+            for (part, n) in slots.iter_mut().zip(&counts) {
+                let (mine, tail) = std::mem::take(&mut rest).split_at_mut(n[c] as usize);
+                part.push(mine);
+                rest = tail;
+                at += n[c] as usize;
+            }
+        }
+        starts.push(at);
+        drop(counts);
+        let first_ids = per_part.iter().scan(0usize, |id, &n| {
+            let first = *id;
+            *id += n;
+            Some(first as u32)
+        });
+        let jobs: Vec<_> = slots.into_iter().zip(first_ids).enumerate().collect();
+        let kept: Vec<Vec<(usize, u32)>> = jobs
+            .into_par_iter()
+            .map(|(j, (mut slots, mut id))| {
+                let mut kept = Vec::new();
+                for (i, item) in (j * chunk_len..).zip(parts[j]) {
+                    let Some(p) = point(item) else { continue };
+                    let cell = grid.cell(&p);
+                    let (slot, tail) = std::mem::take(&mut slots[cell])
+                        .split_first_mut()
+                        .expect("point and cell_point put an item in the same cell");
+                    slot.write(Entry { p, id });
+                    slots[cell] = tail;
+                    if keep(i) {
+                        kept.push((i, id));
+                    }
+                    id += 1;
+                }
+                assert!(
+                    slots.iter().all(|s| s.is_empty()),
+                    "point and cell_point give points to the same items"
+                );
+                kept
+            })
+            .collect();
+        // SAFETY: the first `total` slots were cut into disjoint pieces that
+        // cover them all, and every piece was written to its end (the
+        // assertion above, in every job).
+        unsafe { entries.set_len(total) };
+        grid.cells = Cells::Packed { entries, starts };
+        grid.len = total;
+        (grid, kept.into_iter().flatten().collect())
     }
 
     /// The cell a point with `q`'s image (and time) coordinates falls in:
@@ -106,22 +239,22 @@ impl<const D: usize> Grid<D> {
         self.flat(self.cell_of(q))
     }
 
-    /// For a grid built once and then only searched: each cell's list
-    /// sized to exactly `counts[cell]` points (no growth slack), and no
-    /// arena, so a point is stored once. `point` is then unavailable and
-    /// the search never rechecks; the points must be inserted next.
-    pub fn reserve(&mut self, counts: &[u32]) {
-        assert_eq!(counts.len(), self.cells.len());
-        assert_eq!(self.len, 0, "reserve before inserting");
-        for (cell, &n) in self.cells.iter_mut().zip(counts) {
-            cell.reserve_exact(n as usize);
+    /// The points of cell `flat`.
+    #[inline]
+    fn points(&self, flat: usize) -> &[Entry<D>] {
+        match &self.cells {
+            Cells::Lists(lists) => &lists[flat],
+            Cells::Packed { entries, starts } => &entries[starts[flat]..starts[flat + 1]],
         }
-        self.keep_arena = false;
+    }
+
+    fn is_packed(&self) -> bool {
+        matches!(self.cells, Cells::Packed { .. })
     }
 
     /// Cells in the grid.
     pub fn cell_count(&self) -> usize {
-        self.cells.len()
+        self.dims.iter().product()
     }
 
     #[inline]
@@ -249,7 +382,7 @@ impl<const D: usize> Grid<D> {
     /// Offers the points of one cell.
     #[inline]
     fn scan(&self, cell: usize, q: &[f32; D], exclude: Option<u32>, kb: &mut KBest) {
-        for e in &self.cells[cell] {
+        for e in self.points(cell) {
             if Some(e.id) != exclude {
                 kb.push(dist2(&e.p, q), e.id);
             }
@@ -258,17 +391,20 @@ impl<const D: usize> Grid<D> {
 
     fn brute_force(&self, q: &[f32; D], exclude: Option<u32>, goal: Goal, kb: &mut KBest) -> Found {
         kb.clear();
-        if self.keep_arena {
-            for (p, id) in self.arena.iter().zip(0u32..) {
-                if Some(id) != exclude {
-                    kb.push(dist2(p, q), id);
+        match &self.cells {
+            Cells::Lists(_) => {
+                for (p, id) in self.arena.iter().zip(0u32..) {
+                    if Some(id) != exclude {
+                        kb.push(dist2(p, q), id);
+                    }
                 }
             }
-        } else {
             // The k smallest distances are the same whatever the order.
-            for e in self.cells.iter().flatten() {
-                if Some(e.id) != exclude {
-                    kb.push(dist2(&e.p, q), e.id);
+            Cells::Packed { entries, .. } => {
+                for e in entries {
+                    if Some(e.id) != exclude {
+                        kb.push(dist2(&e.p, q), e.id);
+                    }
                 }
             }
         }
@@ -287,11 +423,12 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
     fn insert(&mut self, p: [f32; D]) -> u32 {
         let id = u32::try_from(self.len).expect("more than 2^32 stored samples");
         let c = self.flat(self.cell_of(&p));
-        self.cells[c].push(Entry { p, id });
+        let Cells::Lists(lists) = &mut self.cells else {
+            panic!("a packed grid is built whole");
+        };
+        lists[c].push(Entry { p, id });
         self.newest[c] = Some(id);
-        if self.keep_arena {
-            self.arena.push(p);
-        }
+        self.arena.push(p);
         self.len += 1;
         id
     }
@@ -301,7 +438,7 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
     }
 
     fn point(&self, id: u32) -> &[f32; D] {
-        debug_assert!(self.keep_arena, "a reserved grid keeps no arena");
+        debug_assert!(!self.is_packed(), "a packed grid keeps no arena");
         &self.arena[id as usize]
     }
 
@@ -328,7 +465,7 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
             let mut len = 0;
             for rr in 0..=r {
                 self.for_ring(centre, rr, |_, flat| {
-                    block[len] = &self.cells[flat];
+                    block[len] = self.points(flat);
                     len += 1;
                 });
             }
@@ -364,7 +501,7 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
                 return self.brute_force(q, exclude, goal, kb);
             }
             self.for_ring(centre, r, |c, flat| {
-                if self.cells[flat].is_empty() {
+                if self.points(flat).is_empty() {
                     return;
                 }
                 let lb2 = self.cell_bound2(q, c);
@@ -386,7 +523,7 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
         kb: &mut KBest,
         tile: &mut Tile<D>,
     ) -> Found {
-        debug_assert!(self.keep_arena, "a reserved grid is not rechecked");
+        debug_assert!(!self.is_packed(), "a packed grid is not rechecked");
         let new = self.len - first_new as usize;
         let before = kb.version();
         if new > 0 {
@@ -405,7 +542,7 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
                         {
                             return;
                         }
-                        let cell = &self.cells[flat];
+                        let cell = self.points(flat);
                         for e in cell.iter().rev().take_while(|e| e.id >= first_new) {
                             kb.offer(dist2(&e.p, q), e.id);
                         }
@@ -429,11 +566,13 @@ mod tests {
     use super::*;
 
     /// Clusters and lone points far apart (so that some searches fall back
-    /// to scanning every point): a reserved grid, which keeps no arena and
-    /// scans its cells instead, gives every verdict and σ the usual grid
+    /// to scanning every point), and items without a point: a packed
+    /// grid, however many chunks build it, holds in each cell the points
+    /// and ids inserting them one by one gives, keeps the items asked for
+    /// with their ids, and gives every verdict and σ the growing grid
     /// gives, for both goals.
     #[test]
-    fn a_reserved_grid_searches_like_a_growing_one() {
+    fn a_packed_grid_is_the_grid_of_inserting_one_by_one() {
         let mut seed = 1u64;
         let mut next = || {
             seed = seed
@@ -441,28 +580,47 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             (seed >> 40) as f32 / (1u64 << 24) as f32
         };
-        let mut points: Vec<[f32; 5]> = Vec::new();
+        let mut items: Vec<Option<[f32; 5]>> = Vec::new();
         for c in 0..6 {
             let (cx, cy) = (40.0 * c as f32, 7.0 * c as f32);
-            for _ in 0..40 {
-                points.push([cx + next(), cy + next(), next(), next(), next()]);
+            for i in 0..40 {
+                let p = [cx + next(), cy + next(), next(), next(), next()];
+                items.push((i % 7 != 3).then_some(p));
             }
         }
         for i in 0..5 {
-            points.push([250.0 * next(), 250.0 * next(), 9.0 * i as f32, 0.0, 0.0]);
+            items.push(Some([
+                250.0 * next(),
+                250.0 * next(),
+                9.0 * i as f32,
+                0.0,
+                0.0,
+            ]));
         }
         let extent = [256.0, 256.0, 1.0];
         let mut growing = Grid::<5>::with_side(extent, -1);
-        let mut reserved = Grid::<5>::with_side(extent, -1);
-        let mut counts = vec![0u32; reserved.cell_count()];
-        for p in &points {
-            counts[reserved.cell(p)] += 1;
+        let mut want_kept = Vec::new();
+        for (i, p) in items.iter().enumerate() {
+            if let Some(p) = p {
+                let id = growing.insert(*p);
+                if i % 5 == 0 {
+                    want_kept.push((i, id));
+                }
+            }
         }
-        reserved.reserve(&counts);
-        for p in &points {
-            assert_eq!(growing.insert(*p), reserved.insert(*p));
+        let image = |p: &Option<[f32; 5]>| p.map(|p| [p[0], p[1], 0.0, 0.0, 0.0]);
+        for chunks in [1, 2, 3, 8, 1000] {
+            let (packed, kept) =
+                Grid::packed_in(extent, -1, &items, chunks, image, |p| *p, |i| i % 5 == 0);
+            assert_eq!(kept, want_kept, "{chunks} chunks");
+            assert_eq!(packed.len(), growing.len());
+            for c in 0..growing.cell_count() {
+                let ids = |g: &Grid<5>| g.points(c).iter().map(|e| (e.id, e.p)).collect::<Vec<_>>();
+                assert_eq!(ids(&packed), ids(&growing), "cell {c}, {chunks} chunks");
+            }
         }
-        assert_eq!(reserved.len(), points.len());
+        let (packed, _) = Grid::packed(extent, -1, &items, image, |p| *p, |_| false);
+        let points: Vec<[f32; 5]> = items.iter().flatten().copied().collect();
         for k in [1, 4, 12] {
             for goal in [Goal::Decide, Goal::Exact] {
                 for (id, p) in points.iter().enumerate() {
@@ -470,7 +628,7 @@ mod tests {
                     let (mut a, mut b) = (KBest::new(k), KBest::new(k));
                     let (mut ta, mut tb) = (Tile::default(), Tile::default());
                     let va = growing.search(p, id, goal, &mut a, &mut ta).verdict;
-                    let vb = reserved.search(p, id, goal, &mut b, &mut tb).verdict;
+                    let vb = packed.search(p, id, goal, &mut b, &mut tb).verdict;
                     assert_eq!(va, vb, "point {id:?}, k {k}, {goal:?}");
                 }
             }
