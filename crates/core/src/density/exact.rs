@@ -24,7 +24,7 @@ pub enum ExactSigma {
 }
 
 impl ExactSigma {
-    /// The HTML report's σ map (docs/filter.md §3): 8 exact σ in each
+    /// The HTML report's σ map (docs/filter.md §2): 8 exact σ in each
     /// pixel where the dump's order tells which samples those are, else
     /// about 16 (so that, picked by a hash, none misses a pixel); every σ
     /// when the dump has no more than that.

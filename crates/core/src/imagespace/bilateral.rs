@@ -206,13 +206,7 @@ mod tests {
     /// size).
     #[test]
     fn pairs_in_bands_give_the_per_pixel_bits() {
-        let mut seed = 7u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::synth::test_units(7);
         for (w, h, frames, sigma_s) in [
             (37, 29, 2, 2.0),
             (5, 40, 1, 1.1),

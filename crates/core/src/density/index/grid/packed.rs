@@ -137,13 +137,8 @@ mod tests {
     /// gives, for both goals.
     #[test]
     fn a_packed_grid_is_the_grid_of_inserting_one_by_one() {
-        let mut seed = 1u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut unit = crate::synth::test_units(1);
+        let mut next = || unit() as f32;
         let mut items: Vec<Option<[f32; 5]>> = Vec::new();
         for c in 0..6 {
             let (cx, cy) = (40.0 * c as f32, 7.0 * c as f32);
