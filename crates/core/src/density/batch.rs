@@ -6,7 +6,6 @@ use std::sync::{Arc, Mutex};
 
 use crate::par::prelude::*;
 
-use super::ExactSigma;
 use super::index::{Found, NeighbourIndex};
 use super::seeds::{SeedCache, SeedKeys, Seeds};
 use super::sigma::{Goal, KBest, Verdict};
@@ -29,8 +28,6 @@ pub(super) struct Slot<const D: usize> {
     /// The key its seeds are cached under ([`SeedKeys`]).
     pub(super) seed_key: u32,
     pub(super) p: [f32; D],
-    /// Whether its exact σ is wanted ([`super::ExactSigma`]).
-    pub(super) goal: Goal,
 }
 
 /// The parallel search of one valid record.
@@ -89,7 +86,6 @@ impl<const D: usize> Batch<D> {
             key: 0,
             seed_key: 0,
             p: [0.0; D],
-            goal: Goal::Decide,
         };
         let hit = Hit {
             found: ACCEPTED,
@@ -110,33 +106,26 @@ impl<const D: usize> Batch<D> {
         }
     }
 
-    /// Classifies `recs` (records `first`, `first + 1`, …), maps them to
-    /// the joint space and computes `index`'s locality key of each, in
-    /// parallel. Needs no stored point, so it runs a batch ahead, beside
-    /// the in-order pass.
-    #[allow(clippy::too_many_arguments)]
+    /// Classifies `recs`, maps them to the joint space and computes
+    /// `index`'s locality key of each, in parallel. Needs no stored point,
+    /// so it runs a batch ahead, beside the in-order pass.
     pub(super) fn prepare<I: NeighbourIndex<D>>(
         &mut self,
-        first: usize,
         recs: &[Record],
         index: &I,
         header: &Header,
         space: &JointSpace,
         seed_keys: SeedKeys,
-        exact: ExactSigma,
     ) {
         let m = recs.len();
         self.slots[..m]
             .par_chunks_mut(SUB_BLOCK)
             .zip(self.validity[..m].par_chunks_mut(SUB_BLOCK))
             .zip(recs.par_chunks(SUB_BLOCK))
-            .enumerate()
-            .for_each(|(b, ((slots, validity), recs))| {
-                let first = first + b * SUB_BLOCK;
-                for (i, ((slot, v), rec)) in slots.iter_mut().zip(validity).zip(recs).enumerate() {
+            .for_each(|((slots, validity), recs)| {
+                for ((slot, v), rec) in slots.iter_mut().zip(validity).zip(recs) {
                     *v = rec.validity(header);
                     if *v == Validity::Valid {
-                        slot.goal = exact.goal(first + i);
                         slot.p = space.point::<D>(rec);
                         slot.key = index.locality(&slot.p);
                         slot.seed_key = if seed_keys.by_pixel {
@@ -200,14 +189,12 @@ impl<const D: usize> Batch<D> {
                     share,
                 } = &mut *guard;
                 for ((hit, kd), &key) in hits.iter_mut().zip(kbuf.chunks_mut(k)).zip(order) {
-                    let Slot {
-                        p, seed_key, goal, ..
-                    } = slots[(key & u32::MAX as u64) as usize];
+                    let Slot { p, seed_key, .. } = slots[(key & u32::MAX as u64) as usize];
                     let p = &p;
                     let cell = (key >> 32) as u32;
                     hit.deferred = false;
                     seeds.visit(cell, seed_key);
-                    if goal == Goal::Decide && seeds.accept(index, p, k) {
+                    if seeds.accept(index, p, k) {
                         hit.found = ACCEPTED;
                         continue;
                     }
@@ -225,17 +212,14 @@ impl<const D: usize> Batch<D> {
                             continue;
                         }
                     }
-                    hit.found = index.search(p, None, goal, kb, scratch);
+                    hit.found = index.search(p, None, Goal::Decide, kb, scratch);
                     seeds.remember(kb, cell, seed_key, &hit.found);
                     hit.klen = kb.as_slice().len();
                     hit.sorted = kb.is_sorted();
                     kd[..hit.klen].copy_from_slice(kb.as_slice());
                 }
-                // A record whose σ is wanted is never settled here: the
-                // in-order pass records its σ.
-                for ((a, hit), &key) in accepted.iter_mut().zip(&*hits).zip(order) {
-                    let goal = slots[(key & u32::MAX as u64) as usize].goal;
-                    *a = goal == Goal::Decide && !hit.deferred && hit.found.verdict.accepted();
+                for (a, hit) in accepted.iter_mut().zip(&*hits) {
+                    *a = !hit.deferred && hit.found.verdict.accepted();
                 }
             });
     }

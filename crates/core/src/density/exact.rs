@@ -61,6 +61,20 @@ impl ExactSigma {
         }
     }
 
+    /// Calls `f` on every record of `recs` whose σ is wanted, in order:
+    /// the records [`ExactSigma::wants`] picks, found without testing
+    /// each one where the dump's order tells which they are.
+    pub fn for_each_wanted(self, recs: std::ops::Range<usize>, mut f: impl FnMut(usize)) {
+        match self {
+            ExactSigma::None => {}
+            ExactSigma::All => recs.for_each(f),
+            ExactSigma::OneIn(_) => recs.filter(|&r| self.wants(r)).for_each(f),
+            ExactSigma::Strata(s) => {
+                s.for_each_wanted(recs.start as u64..recs.end as u64, |r| f(r as usize))
+            }
+        }
+    }
+
     /// What the search of record `rec` must establish.
     #[inline]
     pub(crate) fn goal(self, rec: usize) -> Goal {
@@ -121,6 +135,40 @@ impl Strata {
     }
 }
 
+impl Strata {
+    /// [`ExactSigma::for_each_wanted`]: in a pixel-major dump each pixel's
+    /// picked samples are every n-th from the first, in a pass-major one
+    /// each pass picks the pixels of one residue of mix(p) mod n.
+    fn for_each_wanted(self, recs: std::ops::Range<u64>, mut f: impl FnMut(u64)) {
+        let n = self.n as u64;
+        if recs.is_empty() {
+            return;
+        }
+        if self.pass_major {
+            for pass in recs.start / self.pixels..=(recs.end - 1) / self.pixels {
+                let (frame, s) = (pass / self.spp, pass % self.spp);
+                let residue = (n - s % n) % n;
+                let first = pass * self.pixels;
+                let (lo, hi) = (recs.start.max(first), recs.end.min(first + self.pixels));
+                for rec in lo..hi {
+                    if mix(frame * self.pixels + rec - first) % n == residue {
+                        f(rec);
+                    }
+                }
+            }
+        } else {
+            for pixel in recs.start / self.spp..=(recs.end - 1) / self.spp {
+                let first = pixel * self.spp + (n - mix(pixel) % n) % n;
+                for rec in (first..(pixel + 1) * self.spp).step_by(self.n as usize) {
+                    if recs.contains(&rec) {
+                        f(rec);
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// SplitMix64's finaliser: consecutive indices to unrelated bits, so that
 /// one in n of them is picked evenly over pixels in any dump order.
 #[inline]
@@ -177,6 +225,35 @@ mod tests {
                     })
                     .collect();
                 assert!(firsts.len() > 1, "{order} n {n}: the same pass everywhere");
+            }
+        }
+    }
+
+    /// Walking the picked records gives exactly those `wants` picks, in
+    /// order, from any range, for every kind of pick.
+    #[test]
+    fn walking_the_picked_records_finds_what_wants_picks() {
+        for order in [Order::PixelMajor, Order::PassMajor] {
+            let mut h = Header::still(5, 4, 24, order);
+            h.frames = 3;
+            h.sample_count = 5 * 4 * 3 * 24;
+            let all = h.sample_count as usize;
+            let mut picks = vec![ExactSigma::None, ExactSigma::All, ExactSigma::OneIn(3)];
+            picks.extend([2, 5, 8, 24].map(|n| ExactSigma::Strata(Strata::new(&h, n).unwrap())));
+            for pick in picks {
+                for (lo, hi) in [
+                    (0, all),
+                    (0, 0),
+                    (7, 8),
+                    (13, 700),
+                    (19, 20),
+                    (all - 3, all),
+                ] {
+                    let mut walked = Vec::new();
+                    pick.for_each_wanted(lo..hi, |r| walked.push(r));
+                    let want: Vec<usize> = (lo..hi).filter(|&r| pick.wants(r)).collect();
+                    assert_eq!(walked, want, "{order} {pick:?} {lo}..{hi}");
+                }
             }
         }
     }

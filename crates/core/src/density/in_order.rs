@@ -5,7 +5,6 @@
 
 use super::Decision;
 use super::FilterCounts;
-use super::Sigmas;
 use super::batch::{ACCEPTED, Batch, Worker};
 use super::index::NeighbourIndex;
 use super::sigma::Goal;
@@ -14,7 +13,6 @@ use crate::dump::Validity;
 /// The streaming pass's results, filled in file order.
 pub(super) struct Streaming<'a> {
     pub(super) decisions: &'a mut [u8],
-    pub(super) sigma: Option<&'a mut Sigmas>,
     pub(super) counts: &'a mut FilterCounts,
     /// Record index of every stored point, by id.
     pub(super) stored_at: &'a mut Vec<u64>,
@@ -55,7 +53,6 @@ pub(super) fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
         // Not accepted by the search: its verdict stands only if nothing
         // was stored since.
         let (slot, hit) = (&batch.slots[i], &batch.hits[j]);
-        let goal = slot.goal;
         let settled = !hit.deferred && index.len() == batch.base as usize;
         if !settled {
             // Only the samples that need them visit the seeds: in a
@@ -66,23 +63,17 @@ pub(super) fn decide_in_order<const D: usize, I: NeighbourIndex<D>>(
         }
         let found = if settled {
             hit.found
-        } else if goal == Goal::Decide && seeds.accept(&*index, &slot.p, k) {
+        } else if seeds.accept(&*index, &slot.p, k) {
             ACCEPTED
         } else if hit.deferred {
             deferred += 1;
-            let found = index.search(&slot.p, None, goal, kb, scratch);
+            let found = index.search(&slot.p, None, Goal::Decide, kb, scratch);
             seeds.remember(kb, slot.key, slot.seed_key, &found);
             found
         } else {
             kb.load(&batch.kbuf[j * k..j * k + hit.klen], hit.sorted);
-            index.recheck(&slot.p, batch.base, hit.found, goal, kb, scratch)
+            index.recheck(&slot.p, batch.base, hit.found, kb, scratch)
         };
-        // Only a wanted σ is kept: a search that only had to decide may
-        // have found σ too, or not, depending on the order of work.
-        if let (Some(sig), Some(v), Goal::Exact) = (out.sigma.as_mut(), found.verdict.sigma(), goal)
-        {
-            sig.set(rec, v);
-        }
         if found.verdict.accepted() {
             out.decisions[rec] = Decision::AcceptedStreaming as u8;
             out.counts.accepted_streaming += 1;

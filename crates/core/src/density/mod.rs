@@ -7,8 +7,11 @@
 //! specification. [`run`] is the same replay made fast and parallel, with
 //! the same bytes for any thread count: `schedule` overlaps a parallel
 //! search of each batch (`batch`, accelerated by `seeds`) with the
-//! in-order decisions (`in_order`), balanced by `deferral`.
+//! in-order decisions (`in_order`), balanced by `deferral`; the σ the
+//! report wants of samples accepted while streaming are found after it
+//! (`accepted_sigma`).
 
+mod accepted_sigma;
 mod batch;
 mod deferral;
 pub mod evidence;

@@ -23,6 +23,7 @@ use std::time::Instant;
 use crate::par::prelude::*;
 
 use super::Sigmas;
+use super::accepted_sigma::sigma_of_accepted;
 use super::batch::{Batch, SUB_BLOCK, Worker};
 use super::deferral::Deferral;
 use super::in_order::{Streaming, decide_in_order};
@@ -72,13 +73,11 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
     let workers = Worker::<I::Scratch>::per_thread(k, seed_keys.slots);
     for (j, start) in (0..n).step_by(batch).take(2).enumerate() {
         batches[j].prepare(
-            start,
             &records[range(start)],
             &lagging,
             header,
             params.space,
             seed_keys,
-            exact,
         );
     }
     if n > 0 {
@@ -91,7 +90,6 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
         let [cur, next, after] = &mut batches;
         let mut out = Streaming {
             decisions: &mut decisions,
-            sigma: sigma.as_mut(),
             counts: &mut counts,
             stored_at: &mut stored_at,
         };
@@ -123,18 +121,8 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
                     },
                     || {
                         if start + 2 * batch < n {
-                            let first = start + 2 * batch;
-                            let recs = &records[range(first)];
-                            let space = params.space;
-                            after.prepare(
-                                first,
-                                recs,
-                                lagging_ref,
-                                header,
-                                space,
-                                seed_keys,
-                                exact,
-                            );
+                            let recs = &records[range(start + 2 * batch)];
+                            after.prepare(recs, lagging_ref, header, params.space, seed_keys);
                         }
                     },
                 )
@@ -162,6 +150,19 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
         progress.inc(m as u64);
     }
     drop(lagging);
+    if let Some(sigma) = sigma.as_mut() {
+        let decided = &decisions;
+        sigma_of_accepted(
+            records,
+            params.space,
+            k,
+            &index,
+            &stored_at,
+            decided,
+            exact,
+            sigma,
+        );
+    }
     let streaming_seconds = t0.elapsed().as_secs_f64();
 
     // Final pass: every stored point against T without itself.

@@ -96,12 +96,53 @@ impl<const D: usize> NeighbourIndex<D> for KdTree<D> {
         }
     }
 
+    fn search_before(&self, q: &[f32; D], before: u32, kb: &mut KBest, _: &mut ()) -> Found {
+        kb.clear();
+        let earlier = (before as usize).min(self.arena.len());
+        let in_tree = self.arena.len() - self.overflow.len();
+        // The n nearest of the tree hold the k nearest of the points stored
+        // before `before` once k of them are such points: ask for more
+        // until they are, or scan those points when there are few.
+        let mut want = kb.k().min(in_tree);
+        loop {
+            if want == 0 || earlier <= 4 * want {
+                for (p, id) in self.arena[..earlier].iter().zip(0u32..) {
+                    kb.push(dist2(p, q), id);
+                }
+                break;
+            }
+            let n = NonZeroUsize::new(want).expect("want ≥ 1");
+            let hits = self
+                .tree
+                .query(q)
+                .nearest_n::<SquaredEuclidean<f64>>(n)
+                .execute();
+            let found = hits.iter().filter(|h| h.item < before).count();
+            if found >= kb.k() || want == in_tree {
+                for h in hits.iter().filter(|h| h.item < before) {
+                    kb.push(dist2(&self.arena[h.item as usize], q), h.item);
+                }
+                for &id in self.overflow.iter().filter(|&&id| id < before) {
+                    kb.push(dist2(&self.arena[id as usize], q), id);
+                }
+                break;
+            }
+            want = (want * 4).min(in_tree);
+        }
+        let verdict =
+            judge(kb, f64::INFINITY, Goal::Exact).expect("a complete search always decides");
+        Found {
+            verdict,
+            bound: f64::INFINITY,
+            reach: 0,
+        }
+    }
+
     fn recheck(
         &self,
         q: &[f32; D],
         first_new: u32,
         prev: Found,
-        goal: Goal,
         kb: &mut KBest,
         scratch: &mut (),
     ) -> Found {
@@ -109,10 +150,11 @@ impl<const D: usize> NeighbourIndex<D> for KdTree<D> {
         let new = self.arena.len() - first_new as usize;
         if new <= 4096 {
             offer_suffix(&self.arena, first_new, q, kb);
-            let verdict = judge(kb, prev.bound, goal).expect("a complete search always decides");
+            let verdict =
+                judge(kb, prev.bound, Goal::Decide).expect("a complete search always decides");
             Found { verdict, ..prev }
         } else {
-            self.search(q, None, goal, kb, scratch)
+            self.search(q, None, Goal::Decide, kb, scratch)
         }
     }
 }

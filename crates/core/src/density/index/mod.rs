@@ -57,14 +57,25 @@ pub trait NeighbourIndex<const D: usize>: Sync + Send {
         scratch: &mut Self::Scratch,
     ) -> Found;
 
-    /// Completes an earlier search `prev` (whose distances are in `kb`) with
-    /// the points inserted since, those with id ≥ `first_new`.
+    /// The k nearest to `q` among the points with ids below `before` (the
+    /// T a sample met when the replay decided it), found exactly, as
+    /// [`Goal::Exact`]: the σ map's searches, run once T is complete.
+    fn search_before(
+        &self,
+        q: &[f32; D],
+        before: u32,
+        kb: &mut KBest,
+        scratch: &mut Self::Scratch,
+    ) -> Found;
+
+    /// Completes an earlier search `prev` that only had to decide (whose
+    /// distances are in `kb`) with the points inserted since, those with
+    /// id ≥ `first_new`, and decides.
     fn recheck(
         &self,
         q: &[f32; D],
         first_new: u32,
         prev: Found,
-        goal: Goal,
         kb: &mut KBest,
         scratch: &mut Self::Scratch,
     ) -> Found;
@@ -109,5 +120,78 @@ pub(crate) fn offer_suffix<const D: usize>(
 ) {
     for (p, id) in arena[first_new as usize..].iter().zip(first_new..) {
         kb.offer(crate::joint::dist2(p, q), id);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::grid::Grid;
+    use super::kdtree::KdTree;
+    use super::*;
+    use crate::joint::dist2;
+
+    /// Clustered points (so that grid searches go past their block and
+    /// k-d tree searches past their first ask), with exact duplicates.
+    fn points(n: usize) -> Vec<[f32; 5]> {
+        let mut unit = crate::synth::test_units(99);
+        let mut pts: Vec<[f32; 5]> = Vec::new();
+        for i in 0..n {
+            if i % 17 == 16 {
+                pts.push(pts[i / 2]);
+                continue;
+            }
+            let (cx, cy) = ((i % 5) as f64 * 9.0, (i % 3) as f64 * 7.0);
+            let spread = if i % 4 == 0 { 12.0 } else { 1.5 };
+            pts.push(std::array::from_fn(|j| match j {
+                0 => (cx + unit() * spread) as f32,
+                1 => (cy + unit() * spread) as f32,
+                _ => (unit() * 2.0) as f32,
+            }));
+        }
+        pts
+    }
+
+    /// `search_before` finds the k nearest of the points stored before a
+    /// given id, as a sort of those points' distances does, on both
+    /// indices, for any number of earlier points (fewer than k included).
+    fn finds_the_k_nearest_stored_before<I: NeighbourIndex<5>>(mut index: I) {
+        let pts = points(3000);
+        for &p in &pts {
+            index.insert(p);
+        }
+        let mut unit = crate::synth::test_units(5);
+        let mut scratch = I::Scratch::default();
+        for k in [1, 5, 50] {
+            let mut kb = KBest::new(k);
+            for before in [0, 1, k as u32 - 1, k as u32, 40, 301, 1777, 2999, 3000] {
+                for _ in 0..20 {
+                    let q: [f32; 5] =
+                        std::array::from_fn(|j| (unit() * if j < 2 { 40.0 } else { 2.0 }) as f32);
+                    let found = index.search_before(&q, before, &mut kb, &mut scratch);
+                    let mut want: Vec<f64> = pts[..before as usize]
+                        .iter()
+                        .map(|p| dist2(p, &q))
+                        .collect();
+                    want.sort_by(f64::total_cmp);
+                    want.truncate(k);
+                    assert_eq!(kb.as_slice(), &want[..], "k {k}, before {before}");
+                    assert_eq!(
+                        found.verdict,
+                        Verdict::Sigma(super::super::sigma::sigma(&want, k)),
+                        "k {k}, before {before}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_grid_finds_the_k_nearest_stored_before() {
+        finds_the_k_nearest_stored_before(Grid::<5>::new([60.0, 40.0, 1.0]));
+    }
+
+    #[test]
+    fn a_kdtree_finds_the_k_nearest_stored_before() {
+        finds_the_k_nearest_stored_before(KdTree::<5>::default());
     }
 }

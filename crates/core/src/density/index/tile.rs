@@ -21,11 +21,14 @@ pub struct Entry<const D: usize> {
 
 /// Per-worker cache of one block of cells; see the module doc.
 pub struct Tile<const D: usize> {
-    /// (cell, |T|) the block was gathered for; `None` before the first.
-    key: Option<(usize, usize)>,
+    /// (cell, |T|) the block was gathered for, and whether its points are
+    /// in id order ([`Tile::fill_by_id`]); `None` before the first.
+    key: Option<((usize, usize), bool)>,
     /// Coordinate j of every gathered point, widened to f64.
     cols: [Vec<f64>; D],
     ids: Vec<u32>,
+    /// The block's entries while [`Tile::fill_by_id`] sorts them.
+    sorting: Vec<Entry<D>>,
     d2: Vec<f64>,
     /// Candidates below the threshold: (squared distance, id).
     pick: Vec<(f64, u32)>,
@@ -41,6 +44,7 @@ impl<const D: usize> Default for Tile<D> {
             key: None,
             cols: std::array::from_fn(|_| Vec::new()),
             ids: Vec::new(),
+            sorting: Vec::new(),
             d2: Vec::new(),
             pick: Vec::new(),
             last2: f64::INFINITY,
@@ -54,14 +58,38 @@ impl<const D: usize> Default for Tile<D> {
 const TAU_MARGIN: f64 = 1.3;
 
 impl<const D: usize> Tile<D> {
-    /// True when the tile holds the block gathered for `key`.
+    /// True when the tile holds the block gathered for `key` by
+    /// [`Tile::fill`].
     pub fn holds(&self, key: (usize, usize)) -> bool {
-        self.key == Some(key)
+        self.key == Some((key, false))
+    }
+
+    /// True when the tile holds the block gathered for `key` by
+    /// [`Tile::fill_by_id`].
+    pub fn holds_by_id(&self, key: (usize, usize)) -> bool {
+        self.key == Some((key, true))
     }
 
     /// Replaces the contents with the points of `cells` for `key`.
     pub fn fill(&mut self, key: (usize, usize), cells: &[&[Entry<D>]]) {
-        self.key = Some(key);
+        self.gather(cells);
+        self.key = Some((key, false));
+    }
+
+    /// Replaces the contents with the points of `cells` for `key`, in id
+    /// order: the points stored before any given id are then a prefix,
+    /// which [`Tile::nearest_before`] searches alone.
+    pub fn fill_by_id(&mut self, key: (usize, usize), cells: &[&[Entry<D>]]) {
+        let mut sorting = std::mem::take(&mut self.sorting);
+        sorting.clear();
+        sorting.extend(cells.iter().flat_map(|c| c.iter()));
+        sorting.sort_unstable_by_key(|e| e.id);
+        self.gather(&[&sorting]);
+        self.sorting = sorting;
+        self.key = Some((key, true));
+    }
+
+    fn gather(&mut self, cells: &[&[Entry<D>]]) {
         let n = cells.iter().map(|c| c.len()).sum();
         // Sized once, then written in place, a cell at a time, column by
         // column: a refill per cell change is a large share of a
@@ -93,12 +121,34 @@ impl<const D: usize> Tile<D> {
         kb: &mut KBest,
         decide_early: bool,
     ) -> Sum {
+        let n = self.ids.len();
+        self.nearest_among(n, q, exclude, kb, decide_early)
+    }
+
+    /// Replaces the contents of `kb` with the k nearest points to `q` among
+    /// those with ids below `before`, sorted. The tile must have been
+    /// filled by [`Tile::fill_by_id`].
+    pub fn nearest_before(&mut self, q: &[f32; D], before: u32, kb: &mut KBest) {
+        debug_assert!(matches!(self.key, Some((_, true))));
+        let n = self.ids.partition_point(|&id| id < before);
+        self.nearest_among(n, q, None, kb, false);
+    }
+
+    /// [`Tile::nearest`] among the first `n` points.
+    fn nearest_among(
+        &mut self,
+        n: usize,
+        q: &[f32; D],
+        exclude: Option<u32>,
+        kb: &mut KBest,
+        decide_early: bool,
+    ) -> Sum {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2 (checked just above).
-            return unsafe { self.nearest_avx2(q, exclude, kb, decide_early) };
+            return unsafe { self.nearest_avx2(n, q, exclude, kb, decide_early) };
         }
-        self.nearest_portable(q, exclude, kb, decide_early)
+        self.nearest_portable(n, q, exclude, kb, decide_early)
     }
 
     /// [`Tile::nearest`] compiled for AVX2: the same code and the same
@@ -107,23 +157,24 @@ impl<const D: usize> Tile<D> {
     #[target_feature(enable = "avx2")]
     fn nearest_avx2(
         &mut self,
+        n: usize,
         q: &[f32; D],
         exclude: Option<u32>,
         kb: &mut KBest,
         decide_early: bool,
     ) -> Sum {
-        self.nearest_portable(q, exclude, kb, decide_early)
+        self.nearest_portable(n, q, exclude, kb, decide_early)
     }
 
     #[inline(always)]
     fn nearest_portable(
         &mut self,
+        n: usize,
         q: &[f32; D],
         exclude: Option<u32>,
         kb: &mut KBest,
         decide_early: bool,
     ) -> Sum {
-        let n = self.ids.len();
         let k = kb.k();
         self.d2.clear();
         self.d2.resize(n, 0.0);
@@ -150,7 +201,7 @@ impl<const D: usize> Tile<D> {
             // Branch-free compaction of the candidates at or below tau2.
             m = 0;
             let pick = &mut self.pick[..n + 1];
-            for (&d2, &id) in self.d2.iter().zip(&self.ids) {
+            for (&d2, &id) in self.d2.iter().zip(&self.ids[..n]) {
                 pick[m] = (d2, id);
                 m += (d2 <= tau2) as usize;
             }

@@ -266,21 +266,112 @@ impl<const D: usize> Grid<D> {
         s
     }
 
-    /// Offers the points of one cell.
+    /// Offers the points of one cell with ids below `before` (a cell lists
+    /// its points in id order).
     #[inline]
-    fn scan(&self, cell: usize, q: &[f32; D], exclude: Option<u32>, kb: &mut KBest) {
-        for e in self.points(cell) {
+    fn scan(&self, cell: usize, q: &[f32; D], exclude: Option<u32>, before: u32, kb: &mut KBest) {
+        for e in self.points(cell).iter().take_while(|e| e.id < before) {
             if Some(e.id) != exclude {
                 kb.push(dist2(&e.p, q), e.id);
             }
         }
     }
 
-    fn brute_force(&self, q: &[f32; D], exclude: Option<u32>, goal: Goal, kb: &mut KBest) -> Found {
+    /// The search of [`NeighbourIndex::search`] among the points with ids
+    /// below `before` (all of them when it is |T|): a smaller T is searched
+    /// from a tile of the block in id order, of which it is a prefix.
+    fn search_among(
+        &self,
+        q: &[f32; D],
+        exclude: Option<u32>,
+        before: u32,
+        goal: Goal,
+        kb: &mut KBest,
+        tile: &mut Tile<D>,
+    ) -> Found {
+        let centre = self.cell_of(q);
+        // The block of radius TILE_RADIUS settles almost every search.
+        let mut r = TILE_RADIUS;
+        let key = (self.flat(centre), self.len);
+        let all = before as usize >= self.len;
+        debug_assert!(all || (exclude.is_none() && goal == Goal::Exact));
+        if !(if all {
+            tile.holds(key)
+        } else {
+            tile.holds_by_id(key)
+        }) {
+            // At most 3 × 3 cells for stills, 3 × 3 × 3 for animations.
+            let mut block: [&[Entry<D>]; 27] = [&[]; 27];
+            let mut len = 0;
+            for rr in 0..=r {
+                self.for_ring(centre, rr, |_, flat| {
+                    block[len] = self.points(flat);
+                    len += 1;
+                });
+            }
+            if all {
+                tile.fill(key, &block[..len]);
+            } else {
+                tile.fill_by_id(key, &block[..len]);
+            }
+        }
+        // Unless it accepts at once, `judge` below takes the block's bound.
+        if !all {
+            tile.nearest_before(q, before, kb);
+        } else if tile.nearest(q, exclude, kb, goal == Goal::Decide) == Sum::BelowK {
+            return Found {
+                verdict: Verdict::Accept,
+                bound: 0.0,
+                reach: r as u32,
+            };
+        }
+        // Least lower bound of the cells skipped because they could not
+        // hold a point nearer than the current k-th.
+        let mut skipped = f64::INFINITY;
+        loop {
+            let bound = if self.covers(centre, r) {
+                skipped
+            } else {
+                self.bound(q, centre, r).min(skipped)
+            };
+            if let Some(verdict) = judge(kb, bound, goal) {
+                return Found {
+                    verdict,
+                    bound,
+                    reach: r as u32,
+                };
+            }
+            r += 1;
+            if self.ring_cells(r) > before as usize + 64 {
+                // Wide, sparse searches: scanning every point is cheaper.
+                return self.brute_force(q, exclude, before, goal, kb);
+            }
+            self.for_ring(centre, r, |c, flat| {
+                if self.points(flat).is_empty() {
+                    return;
+                }
+                let lb2 = self.cell_bound2(q, c);
+                if lb2 >= kb.worst2() {
+                    skipped = skipped.min(lb2.sqrt());
+                } else {
+                    self.scan(flat, q, exclude, before, kb);
+                }
+            });
+        }
+    }
+
+    fn brute_force(
+        &self,
+        q: &[f32; D],
+        exclude: Option<u32>,
+        before: u32,
+        goal: Goal,
+        kb: &mut KBest,
+    ) -> Found {
         kb.clear();
         match &self.cells {
             Cells::Lists(_) => {
-                for (p, id) in self.arena.iter().zip(0u32..) {
+                for (p, id) in self.arena[..before as usize].iter().zip(0u32..) {
                     if Some(id) != exclude {
                         kb.push(dist2(p, q), id);
                     }
@@ -289,7 +380,7 @@ impl<const D: usize> Grid<D> {
             // The k smallest distances are the same whatever the order.
             Cells::Packed { entries, .. } => {
                 for e in entries {
-                    if Some(e.id) != exclude {
+                    if Some(e.id) != exclude && e.id < before {
                         kb.push(dist2(&e.p, q), e.id);
                     }
                 }
@@ -342,63 +433,17 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
         kb: &mut KBest,
         tile: &mut Tile<D>,
     ) -> Found {
-        let centre = self.cell_of(q);
-        // The block of radius TILE_RADIUS settles almost every search.
-        let mut r = TILE_RADIUS;
-        let key = (self.flat(centre), self.len);
-        if !tile.holds(key) {
-            // At most 3 × 3 cells for stills, 3 × 3 × 3 for animations.
-            let mut block: [&[Entry<D>]; 27] = [&[]; 27];
-            let mut len = 0;
-            for rr in 0..=r {
-                self.for_ring(centre, rr, |_, flat| {
-                    block[len] = self.points(flat);
-                    len += 1;
-                });
-            }
-            tile.fill(key, &block[..len]);
-        }
-        // Unless it accepts at once, `judge` below takes the block's bound.
-        if tile.nearest(q, exclude, kb, goal == Goal::Decide) == Sum::BelowK {
-            return Found {
-                verdict: Verdict::Accept,
-                bound: 0.0,
-                reach: r as u32,
-            };
-        }
-        // Least lower bound of the cells skipped because they could not
-        // hold a point nearer than the current k-th.
-        let mut skipped = f64::INFINITY;
-        loop {
-            let bound = if self.covers(centre, r) {
-                skipped
-            } else {
-                self.bound(q, centre, r).min(skipped)
-            };
-            if let Some(verdict) = judge(kb, bound, goal) {
-                return Found {
-                    verdict,
-                    bound,
-                    reach: r as u32,
-                };
-            }
-            r += 1;
-            if self.ring_cells(r) > self.len + 64 {
-                // Wide, sparse searches: scanning every point is cheaper.
-                return self.brute_force(q, exclude, goal, kb);
-            }
-            self.for_ring(centre, r, |c, flat| {
-                if self.points(flat).is_empty() {
-                    return;
-                }
-                let lb2 = self.cell_bound2(q, c);
-                if lb2 >= kb.worst2() {
-                    skipped = skipped.min(lb2.sqrt());
-                } else {
-                    self.scan(flat, q, exclude, kb);
-                }
-            });
-        }
+        self.search_among(q, exclude, self.len as u32, goal, kb, tile)
+    }
+
+    fn search_before(
+        &self,
+        q: &[f32; D],
+        before: u32,
+        kb: &mut KBest,
+        tile: &mut Tile<D>,
+    ) -> Found {
+        self.search_among(q, None, before, Goal::Exact, kb, tile)
     }
 
     fn recheck(
@@ -406,7 +451,6 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
         q: &[f32; D],
         first_new: u32,
         prev: Found,
-        goal: Goal,
         kb: &mut KBest,
         tile: &mut Tile<D>,
     ) -> Found {
@@ -441,9 +485,9 @@ impl<const D: usize> NeighbourIndex<D> for Grid<D> {
             // Nothing nearer arrived: the earlier verdict stands.
             return prev;
         }
-        match judge(kb, prev.bound, goal) {
+        match judge(kb, prev.bound, Goal::Decide) {
             Some(verdict) => Found { verdict, ..prev },
-            None => self.search(q, None, goal, kb, tile),
+            None => self.search(q, None, Goal::Decide, kb, tile),
         }
     }
 }
