@@ -19,15 +19,14 @@ use crate::dump::Record;
 use crate::joint::JointSpace;
 
 /// Searches per round at most: they are sorted by cell, so that the
-/// searches of one cell share a gathered block, and their memory (40 bytes
-/// each) is bounded by it.
-const ROUND: usize = 1 << 20;
+/// searches of one cell share a gathered block (at 8 a pixel, a round
+/// holds about 9 of each 3 × 3-pixel cell of a 512 × 512 film), and their
+/// memory (about 100 bytes each while the round is gathered) is bounded by
+/// it.
+const ROUND: usize = 1 << 18;
 
 /// Records per parallel job of the gathering.
 const BLOCK: usize = 1 << 14;
-
-/// Searches per parallel job.
-const JOB: usize = 64;
 
 /// One search: a sample and the T it met.
 #[derive(Clone, Copy)]
@@ -88,24 +87,19 @@ pub(super) fn sigma_of_accepted<const D: usize, I: NeighbourIndex<D>>(
         // Neighbours in a row, so that a worker's gathered block serves
         // the searches of its cell.
         queries.par_sort_unstable_by_key(|q| q.key);
-        let found: Vec<Vec<(u64, f64)>> = queries
-            .par_chunks(JOB)
+        let found: Vec<f64> = queries
+            .par_iter()
             .map_init(
                 || (KBest::new(k), I::Scratch::default()),
-                |(kb, scratch), job| {
-                    job.iter()
-                        .map(|q| {
-                            let before = q.key as u32;
-                            let found = index.search_before(&q.p, before, kb, scratch);
-                            let s = found.verdict.sigma();
-                            (q.rec, s.expect("an exact search finds σ"))
-                        })
-                        .collect()
+                |(kb, scratch), q| {
+                    let before = q.key as u32;
+                    let found = index.search_before(&q.p, before, kb, scratch);
+                    found.verdict.sigma().expect("an exact search finds σ")
                 },
             )
             .collect();
-        for (rec, s) in found.into_iter().flatten() {
-            sigma.set(rec as usize, s);
+        for (q, s) in queries.iter().zip(found) {
+            sigma.set(q.rec as usize, s);
         }
     }
 }
