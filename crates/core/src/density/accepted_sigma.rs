@@ -38,68 +38,171 @@ struct Query<const D: usize> {
     p: [f32; D],
 }
 
-/// Sets, in `sigma`, the exact σ of every record `exact` wants that
-/// `decisions` says was accepted while streaming, against the points of
-/// `index` (the final T) stored before it; `stored_at` is the record of
-/// every stored point, by id.
-#[allow(clippy::too_many_arguments)]
-pub(super) fn sigma_of_accepted<const D: usize, I: NeighbourIndex<D>>(
-    records: &[Record],
-    space: &JointSpace,
-    k: usize,
-    index: &I,
-    stored_at: &[u64],
-    decisions: &[u8],
-    exact: ExactSigma,
-    sigma: &mut Sigmas,
-) {
-    // A round of records holds about ROUND wanted ones.
-    let round = ROUND * exact.share().unwrap_or(1) as usize;
-    for start in (0..records.len()).step_by(round) {
-        let end = (start + round).min(records.len());
-        let gather = |first: usize| {
-            let mut queries = Vec::new();
-            // Points stored before the block's first record, then counted on.
-            let mut before = stored_at.partition_point(|&r| r < first as u64);
-            exact.for_each_wanted(first..(first + BLOCK).min(end), |rec| {
-                if decisions[rec] != Decision::AcceptedStreaming as u8 {
-                    return;
-                }
-                while stored_at.get(before).is_some_and(|&r| r < rec as u64) {
-                    before += 1;
-                }
-                let p = space.point::<D>(&records[rec]);
-                queries.push(Query {
-                    key: (index.locality(&p) as u64) << 32 | before as u64,
-                    rec: rec as u64,
-                    p,
-                });
+/// What the searches read: the dump, the replay's decisions and the
+/// record of every stored point, by id (`stored_at`).
+pub(super) struct Accepted<'a> {
+    pub(super) records: &'a [Record],
+    pub(super) space: &'a JointSpace,
+    pub(super) k: usize,
+    pub(super) stored_at: &'a [u64],
+    pub(super) decisions: &'a [u8],
+    pub(super) exact: ExactSigma,
+}
+
+impl Accepted<'_> {
+    /// Sets, in `sigma`, the exact σ of every record `exact` wants that
+    /// was accepted while streaming, against the points of `index` (the
+    /// final T) stored before it.
+    pub(super) fn find_sigma<const D: usize, I: NeighbourIndex<D>>(
+        &self,
+        index: &I,
+        sigma: &mut Sigmas,
+    ) {
+        self.find_in_rounds(index, sigma, ROUND, BLOCK)
+    }
+
+    /// [`Accepted::find_sigma`] in rounds of about `round` searches,
+    /// gathered in jobs of `block` records.
+    fn find_in_rounds<const D: usize, I: NeighbourIndex<D>>(
+        &self,
+        index: &I,
+        sigma: &mut Sigmas,
+        round: usize,
+        block: usize,
+    ) {
+        let n = self.records.len();
+        // A round of records holds about `round` wanted ones.
+        let round = round * self.exact.share().unwrap_or(1) as usize;
+        for start in (0..n).step_by(round) {
+            let end = (start + round).min(n);
+            let blocks: Vec<Vec<Query<D>>> = (start..end)
+                .step_by(block)
+                .collect::<Vec<_>>()
+                .into_par_iter()
+                .map(|first| self.gather(index, first..(first + block).min(end)))
+                .collect();
+            let mut queries = blocks.concat();
+            // Neighbours in a row, so that a worker's gathered block serves
+            // the searches of its cell.
+            queries.par_sort_unstable_by_key(|q| q.key);
+            let found: Vec<f64> = queries
+                .par_iter()
+                .map_init(
+                    || (KBest::new(self.k), I::Scratch::default()),
+                    |(kb, scratch), q| {
+                        let before = q.key as u32;
+                        let found = index.search_before(&q.p, before, kb, scratch);
+                        found.verdict.sigma().expect("an exact search finds σ")
+                    },
+                )
+                .collect();
+            for (q, s) in queries.iter().zip(found) {
+                sigma.set(q.rec as usize, s);
+            }
+        }
+    }
+
+    /// The searches of the records of `recs` that are wanted and were
+    /// accepted while streaming.
+    fn gather<const D: usize, I: NeighbourIndex<D>>(
+        &self,
+        index: &I,
+        recs: std::ops::Range<usize>,
+    ) -> Vec<Query<D>> {
+        let mut queries = Vec::new();
+        // Points stored before the first record, then counted on.
+        let mut before = self.stored_at.partition_point(|&r| r < recs.start as u64);
+        self.exact.for_each_wanted(recs, |rec| {
+            if self.decisions[rec] != Decision::AcceptedStreaming as u8 {
+                return;
+            }
+            while self.stored_at.get(before).is_some_and(|&r| r < rec as u64) {
+                before += 1;
+            }
+            let p = self.space.point::<D>(&self.records[rec]);
+            queries.push(Query {
+                key: (index.locality(&p) as u64) << 32 | before as u64,
+                rec: rec as u64,
+                p,
             });
-            queries
-        };
-        let blocks: Vec<Vec<Query<D>>> = (start..end)
-            .step_by(BLOCK)
-            .collect::<Vec<_>>()
-            .into_par_iter()
-            .map(gather)
-            .collect();
-        let mut queries = blocks.concat();
-        // Neighbours in a row, so that a worker's gathered block serves
-        // the searches of its cell.
-        queries.par_sort_unstable_by_key(|q| q.key);
-        let found: Vec<f64> = queries
-            .par_iter()
-            .map_init(
-                || (KBest::new(k), I::Scratch::default()),
-                |(kb, scratch), q| {
-                    let before = q.key as u32;
-                    let found = index.search_before(&q.p, before, kb, scratch);
-                    found.verdict.sigma().expect("an exact search finds σ")
-                },
-            )
-            .collect();
-        for (q, s) in queries.iter().zip(found) {
-            sigma.set(q.rec as usize, s);
+        });
+        queries
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::FilterConfig;
+    use crate::density::index::grid::Grid;
+    use crate::density::index::kdtree::KdTree;
+    use crate::density::{Strata, plain};
+    use crate::dump::Order;
+    use crate::synth::SynthParams;
+
+    /// In rounds and gathering jobs of any size, on either index, for every
+    /// sample or one in n of each pixel's, the σ found after the replay are
+    /// the plain replay's, for exactly the picked samples it accepted
+    /// while streaming.
+    #[test]
+    fn sigma_after_the_replay_is_the_plain_replays_in_any_rounds() {
+        for order in [Order::PixelMajor, Order::PassMajor] {
+            let synth = SynthParams {
+                width: 9,
+                height: 7,
+                spp: 16,
+                order,
+                firefly_fraction: 0.05,
+                ..SynthParams::default()
+            };
+            let (h, records): (_, Vec<Record>) = (synth.header(), synth.records().collect());
+            let space = FilterConfig::DEFAULT.space(0.5);
+            let k = 4;
+            let plain = plain::replay(&records, &h, &space, k);
+            let want = plain.sigma.as_ref().unwrap().to_dense(records.len());
+            let accepted = |r: usize| plain.decisions[r] == Decision::AcceptedStreaming as u8;
+            let stored_at: Vec<u64> = (0..records.len() as u64)
+                .filter(|&r| {
+                    let d = plain.decisions[r as usize];
+                    d == Decision::AcceptedFinal as u8 || d == Decision::Rejected as u8
+                })
+                .collect();
+            let t: Vec<[f32; 5]> = stored_at
+                .iter()
+                .map(|&r| space.point::<5>(&records[r as usize]))
+                .collect();
+            let (mut grid, mut tree) = (Grid::<5>::new(space.extent(&h)), KdTree::<5>::default());
+            for &p in &t {
+                grid.insert(p);
+                tree.insert(p);
+            }
+            let strata = ExactSigma::Strata(Strata::new(&h, 4).unwrap());
+            for exact in [ExactSigma::All, strata] {
+                let picked = (0..records.len()).filter(|&r| accepted(r) && exact.wants(r));
+                let picked: Vec<usize> = picked.collect();
+                assert!(picked.len() > 100, "{order}: {} picked", picked.len());
+                let run = Accepted {
+                    records: &records,
+                    space: &space,
+                    k,
+                    stored_at: &stored_at,
+                    decisions: &plain.decisions,
+                    exact,
+                };
+                for (round, block) in [(1 << 18, 1 << 14), (5, 3), (1, 1), (17, 64)] {
+                    let mut on_grid = Sigmas::new(exact, records.len());
+                    run.find_in_rounds(&grid, &mut on_grid, round, block);
+                    let mut on_tree = Sigmas::new(exact, records.len());
+                    run.find_in_rounds(&tree, &mut on_tree, round, block);
+                    for sig in [&mut on_grid, &mut on_tree] {
+                        sig.finish();
+                        let got: Vec<(usize, f64)> = sig.kept().filter(|p| !p.1.is_nan()).collect();
+                        let wanted: Vec<(usize, f64)> =
+                            picked.iter().map(|&r| (r, want[r])).collect();
+                        assert_eq!(got, wanted, "{order} {exact:?} round {round} block {block}");
+                    }
+                }
+            }
         }
     }
 }

@@ -23,7 +23,7 @@ use std::time::Instant;
 use crate::par::prelude::*;
 
 use super::Sigmas;
-use super::accepted_sigma::sigma_of_accepted;
+use super::accepted_sigma::Accepted;
 use super::batch::{Batch, SUB_BLOCK, Worker};
 use super::deferral::Deferral;
 use super::in_order::{Streaming, decide_in_order};
@@ -151,17 +151,15 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
     }
     drop(lagging);
     if let Some(sigma) = sigma.as_mut() {
-        let decided = &decisions;
-        sigma_of_accepted(
+        let accepted = Accepted {
             records,
-            params.space,
+            space: params.space,
             k,
-            &index,
-            &stored_at,
-            decided,
+            stored_at: &stored_at,
+            decisions: &decisions,
             exact,
-            sigma,
-        );
+        };
+        accepted.find_sigma(&index, sigma);
     }
     let streaming_seconds = t0.elapsed().as_secs_f64();
 
