@@ -21,9 +21,12 @@ pub struct Entry<const D: usize> {
 
 /// Per-worker cache of one block of cells; see the module doc.
 pub struct Tile<const D: usize> {
-    /// (cell, |T|) the block was gathered for, and whether its points are
-    /// in id order ([`Tile::fill_by_id`]); `None` before the first.
-    key: Option<((usize, usize), bool)>,
+    /// (cell, |T|) the block was gathered for; `None` before the first.
+    key: Option<(usize, usize)>,
+    /// Whether its points are in id order ([`Tile::fill_by_id`]). Not part
+    /// of `key`: a key of both made every replay 5 % slower
+    /// (docs/BENCHMARKS.md).
+    by_id: bool,
     /// Coordinate j of every gathered point, widened to f64.
     cols: [Vec<f64>; D],
     ids: Vec<u32>,
@@ -42,6 +45,7 @@ impl<const D: usize> Default for Tile<D> {
     fn default() -> Self {
         Tile {
             key: None,
+            by_id: false,
             cols: std::array::from_fn(|_| Vec::new()),
             ids: Vec::new(),
             sorting: Vec::new(),
@@ -61,19 +65,20 @@ impl<const D: usize> Tile<D> {
     /// True when the tile holds the block gathered for `key` by
     /// [`Tile::fill`].
     pub fn holds(&self, key: (usize, usize)) -> bool {
-        self.key == Some((key, false))
+        self.key == Some(key) && !self.by_id
     }
 
     /// True when the tile holds the block gathered for `key` by
     /// [`Tile::fill_by_id`].
     pub fn holds_by_id(&self, key: (usize, usize)) -> bool {
-        self.key == Some((key, true))
+        self.key == Some(key) && self.by_id
     }
 
     /// Replaces the contents with the points of `cells` for `key`.
     pub fn fill(&mut self, key: (usize, usize), cells: &[&[Entry<D>]]) {
         self.gather(cells);
-        self.key = Some((key, false));
+        self.key = Some(key);
+        self.by_id = false;
     }
 
     /// Replaces the contents with the points of `cells` for `key`, in id
@@ -86,7 +91,8 @@ impl<const D: usize> Tile<D> {
         sorting.sort_unstable_by_key(|e| e.id);
         self.gather(&[&sorting]);
         self.sorting = sorting;
-        self.key = Some((key, true));
+        self.key = Some(key);
+        self.by_id = true;
     }
 
     fn gather(&mut self, cells: &[&[Entry<D>]]) {
@@ -129,7 +135,7 @@ impl<const D: usize> Tile<D> {
     /// those with ids below `before`, sorted. The tile must have been
     /// filled by [`Tile::fill_by_id`].
     pub fn nearest_before(&mut self, q: &[f32; D], before: u32, kb: &mut KBest) {
-        debug_assert!(matches!(self.key, Some((_, true))));
+        debug_assert!(self.by_id);
         let n = self.ids.partition_point(|&id| id < before);
         self.nearest_among(n, q, None, kb, false);
     }
