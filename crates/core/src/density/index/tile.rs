@@ -24,8 +24,8 @@ pub struct Tile<const D: usize> {
     /// (cell, |T|) the block was gathered for; `None` before the first.
     key: Option<(usize, usize)>,
     /// Whether its points are in id order ([`Tile::fill_by_id`]). Not part
-    /// of `key`: a key of both made every replay 5 % slower
-    /// (docs/BENCHMARKS.md).
+    /// of `key`: a key of both made the bare replay's streaming pass up to
+    /// 6 % slower (docs/BENCHMARKS.md).
     by_id: bool,
     /// Coordinate j of every gathered point, widened to f64.
     cols: [Vec<f64>; D],

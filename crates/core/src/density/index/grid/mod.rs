@@ -295,11 +295,12 @@ impl<const D: usize> Grid<D> {
         let key = (self.flat(centre), self.len);
         let all = before as usize >= self.len;
         debug_assert!(all || (exclude.is_none() && goal == Goal::Exact));
-        if !(if all {
+        let held = if all {
             tile.holds(key)
         } else {
             tile.holds_by_id(key)
-        }) {
+        };
+        if !held {
             // At most 3 × 3 cells for stills, 3 × 3 × 3 for animations.
             let mut block: [&[Entry<D>]; 27] = [&[]; 27];
             let mut len = 0;
