@@ -37,6 +37,27 @@ impl<const D: usize> KdTree<D> {
     pub fn overflow_len(&self) -> usize {
         self.overflow.len()
     }
+
+    /// The ids of kiddo's `want` (≥ 1) nearest points of the tree to `q`.
+    fn nearest_in_tree(&self, q: &[f32; D], want: usize) -> Vec<u32> {
+        let n = NonZeroUsize::new(want).expect("want ≥ 1");
+        let hits = self
+            .tree
+            .query(q)
+            .nearest_n::<SquaredEuclidean<f64>>(n)
+            .execute();
+        hits.into_iter().map(|h| h.item).collect()
+    }
+}
+
+/// The verdict of a search that looked at every candidate.
+fn complete(kb: &mut KBest, goal: Goal) -> Found {
+    let verdict = judge(kb, f64::INFINITY, goal).expect("a complete search always decides");
+    Found {
+        verdict,
+        bound: f64::INFINITY,
+        reach: 0,
+    }
 }
 
 impl<const D: usize> NeighbourIndex<D> for KdTree<D> {
@@ -71,15 +92,9 @@ impl<const D: usize> NeighbourIndex<D> for KdTree<D> {
         let in_tree = self.arena.len() - self.overflow.len();
         if in_tree > 0 {
             let want = (kb.k() + exclude.is_some() as usize).min(in_tree);
-            let n = NonZeroUsize::new(want).expect("want ≥ 1");
-            let hits = self
-                .tree
-                .query(q)
-                .nearest_n::<SquaredEuclidean<f64>>(n)
-                .execute();
-            for h in hits {
-                if Some(h.item) != exclude {
-                    kb.push(dist2(&self.arena[h.item as usize], q), h.item);
+            for id in self.nearest_in_tree(q, want) {
+                if Some(id) != exclude {
+                    kb.push(dist2(&self.arena[id as usize], q), id);
                 }
             }
         }
@@ -88,12 +103,7 @@ impl<const D: usize> NeighbourIndex<D> for KdTree<D> {
                 kb.push(dist2(&self.arena[id as usize], q), id);
             }
         }
-        let verdict = judge(kb, f64::INFINITY, goal).expect("a complete search always decides");
-        Found {
-            verdict,
-            bound: f64::INFINITY,
-            reach: 0,
-        }
+        complete(kb, goal)
     }
 
     fn search_before(&self, q: &[f32; D], before: u32, kb: &mut KBest, _: &mut ()) -> Found {
@@ -111,16 +121,11 @@ impl<const D: usize> NeighbourIndex<D> for KdTree<D> {
                 }
                 break;
             }
-            let n = NonZeroUsize::new(want).expect("want ≥ 1");
-            let hits = self
-                .tree
-                .query(q)
-                .nearest_n::<SquaredEuclidean<f64>>(n)
-                .execute();
-            let found = hits.iter().filter(|h| h.item < before).count();
-            if found >= kb.k() || want == in_tree {
-                for h in hits.iter().filter(|h| h.item < before) {
-                    kb.push(dist2(&self.arena[h.item as usize], q), h.item);
+            let mut ids = self.nearest_in_tree(q, want);
+            ids.retain(|&id| id < before);
+            if ids.len() >= kb.k() || want == in_tree {
+                for id in ids {
+                    kb.push(dist2(&self.arena[id as usize], q), id);
                 }
                 for &id in self.overflow.iter().filter(|&&id| id < before) {
                     kb.push(dist2(&self.arena[id as usize], q), id);
@@ -129,13 +134,7 @@ impl<const D: usize> NeighbourIndex<D> for KdTree<D> {
             }
             want = (want * 4).min(in_tree);
         }
-        let verdict =
-            judge(kb, f64::INFINITY, Goal::Exact).expect("a complete search always decides");
-        Found {
-            verdict,
-            bound: f64::INFINITY,
-            reach: 0,
-        }
+        complete(kb, Goal::Exact)
     }
 
     fn recheck(
