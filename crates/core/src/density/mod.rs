@@ -141,6 +141,8 @@ pub struct FilterResult {
     /// With `exact_sigma`: the σ that decided each record it asks for.
     pub sigma: Option<Sigmas>,
     pub counts: FilterCounts,
+    /// The streaming pass, with the search of the σ its accepted samples
+    /// are asked for ([`ExactSigma`]), which follows it.
     pub streaming_seconds: f64,
     pub final_seconds: f64,
 }
