@@ -58,6 +58,22 @@ impl Progress for Bar {
     }
 }
 
+/// `--threads N`: 0 for one a core; more than [`par::max_threads`] is
+/// capped there, with a note on stderr.
+///
+/// [`par::max_threads`]: pathdensity_core::par::max_threads
+pub fn threads(s: &str) -> Result<usize, String> {
+    let n: usize = s
+        .parse()
+        .map_err(|_| format!("expected a thread count, got {s:?}"))?;
+    let max = pathdensity_core::par::max_threads();
+    if n > max {
+        eprintln!("note: --threads {n} capped at {max} (four a core, at least 64)");
+        return Ok(max);
+    }
+    Ok(n)
+}
+
 /// On SIGINT or SIGTERM (Ctrl-C, a scheduler's pre-emption), removes every
 /// temporary file and staging folder of this process and exits with 130:
 /// an interrupted run leaves its outputs as they were and nothing hidden

@@ -16,7 +16,7 @@ pub use pathdensity_format::{dump, image};
 /// Files in and out: atomic writes and EXR (`pathdensity-format`), PNG
 /// previews.
 pub mod io {
-    pub use pathdensity_format::{atomic, exr};
+    pub use pathdensity_format::{atomic, exr, guard};
     pub mod png;
 }
 

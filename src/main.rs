@@ -169,7 +169,7 @@ enum Command {
         #[arg(long)]
         reference: Option<PathBuf>,
         /// Worker threads (default: one per core).
-        #[arg(long, default_value_t = 0)]
+        #[arg(long, default_value_t = 0, value_parser = pathdensity::cli::threads)]
         threads: usize,
         /// Write one decision byte per record to this file.
         #[arg(long)]
@@ -206,7 +206,7 @@ enum Command {
         #[arg(long)]
         reference: Option<String>,
         /// Worker threads of each dump's filter (default: one per core).
-        #[arg(long, default_value_t = 0)]
+        #[arg(long, default_value_t = 0, value_parser = pathdensity::cli::threads)]
         threads: usize,
         /// This process's share, I/N with 0 ≤ I < N (a Slurm array's
         /// $SLURM_ARRAY_TASK_ID/N); then `--merge OUTDIR`.
@@ -260,7 +260,7 @@ enum Command {
         recon: Recon,
         #[arg(long, default_value_t = D.exposure)]
         exposure: f64,
-        #[arg(long, default_value_t = 0)]
+        #[arg(long, default_value_t = 0, value_parser = pathdensity::cli::threads)]
         threads: usize,
         /// Instead of the grid: compare the filtered image of each prefix
         /// of a pass-major dump with the mean of equal total time, using the
@@ -534,6 +534,13 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Regress { dir, bless } => {
             let o = regress::regress(&dir, bless)?;
             print!("{}", o.text);
+            if bless && o.drifted > 0 {
+                eprintln!(
+                    "pathdensity: {} of {} fixtures could not be blessed (each said why above)",
+                    o.drifted, o.fixtures
+                );
+                return Ok(ExitCode::from(EXIT_INPUT));
+            }
             if o.drifted > 0 {
                 eprintln!(
                     "pathdensity: {} of {} fixtures drifted (after an intended change: regress --bless)",

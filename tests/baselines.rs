@@ -8,7 +8,7 @@ use common::*;
 use pathdensity::commands::filter::{FilterOptions, filter};
 use pathdensity::config::Method;
 use pathdensity::dump::Record;
-use pathdensity::io::exr::read_rgb;
+use pathdensity::io::exr::{self, read_rgb};
 use pathdensity::synth::SynthParams;
 
 fn run(dump: &std::path::Path, out: &std::path::Path, alpha: f64) {
@@ -25,7 +25,7 @@ fn run(dump: &std::path::Path, out: &std::path::Path, alpha: f64) {
 }
 
 fn pixels(path: &std::path::Path) -> Vec<[f64; 3]> {
-    read_rgb(path).unwrap().2
+    read_rgb(path, exr::MAX_PIXELS).unwrap().2
 }
 
 #[test]

@@ -13,7 +13,7 @@ use pathdensity::commands::filter::{FilterOptions, filter};
 use pathdensity::config::{FilterConfig, FinalPass, White};
 use pathdensity::density::{self, IndexKind, ReplayOptions};
 use pathdensity::dump::{Header, Record};
-use pathdensity::io::exr::read_rgb;
+use pathdensity::io::exr::{self, read_rgb};
 use pathdensity::joint::JointSpace;
 use pathdensity::progress::Silent;
 use pathdensity::report::FilterReport;
@@ -57,7 +57,7 @@ fn all_exr_finite(dir: &Path) {
     for e in std::fs::read_dir(dir).unwrap() {
         let p = e.unwrap().path();
         if p.extension().is_some_and(|x| x == "exr") {
-            let (_, _, px) = read_rgb(&p).unwrap();
+            let (_, _, px) = read_rgb(&p, exr::MAX_PIXELS).unwrap();
             assert!(
                 px.iter().flatten().all(|v| v.is_finite()),
                 "{} holds a non-finite pixel",

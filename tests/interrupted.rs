@@ -9,7 +9,7 @@ use std::process::Command;
 use std::time::Duration;
 
 use pathdensity::dump::DumpReader;
-use pathdensity::io::exr::read_rgb;
+use pathdensity::io::exr::{self, read_rgb};
 use pathdensity::synth::SynthParams;
 
 /// Every file under a final name in `dir` is complete: images decode,
@@ -24,7 +24,7 @@ fn every_final_file_is_complete(dir: &Path) -> usize {
         }
         match p.extension().and_then(|x| x.to_str()) {
             Some("exr") => {
-                read_rgb(&p).unwrap_or_else(|e| panic!("{name}: {e:#}"));
+                read_rgb(&p, exr::MAX_PIXELS).unwrap_or_else(|e| panic!("{name}: {e:#}"));
             }
             Some("png") => {
                 image::open(&p).unwrap_or_else(|e| panic!("{name}: {e}"));

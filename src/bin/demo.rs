@@ -1,7 +1,9 @@
 //! The one-command demo: render the glossy room, render its reference,
 //! filter the dump and print the summary. No arguments needed.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -9,6 +11,7 @@ use clap::Parser;
 use pathdensity::commands::filter;
 use pathdensity::dump::Order;
 use pathdensity::io::exr;
+use pathdensity::io::guard::{self, Inputs};
 use pathdensity::recon::ReconFilter;
 use pathdensity_render::sampler::independent_seed;
 use pathdensity_render::{RenderSettings, SceneName, render_dump, render_reference};
@@ -36,9 +39,14 @@ struct Cli {
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
-    std::fs::create_dir_all(&cli.out)?;
     let name = cli.scene.as_str();
     let frames = cli.scene.default_frames();
+    let ref_name = format!("{name}_ref");
+    let mut ours = vec![format!("{name}.pds"), "filtered".to_string()];
+    for p in exr::reference_files(&cli.out.join(format!("{ref_name}.exr")), frames as usize) {
+        ours.extend(p.file_name().map(|n| n.to_string_lossy().into_owned()));
+    }
+    claim(&cli.out, &ours)?;
     let scene = cli.scene.build(frames);
     let mut st = RenderSettings {
         width: cli.size,
@@ -63,7 +71,6 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     st.seed = independent_seed(cli.seed);
     let t = Instant::now();
     let reference = render_reference(&scene, &st, ReconFilter::Box, &Bar::new("reference"))?;
-    let ref_name = format!("{name}_ref");
     let written = exr::write_image(&cli.out, &ref_name, &reference)?;
     println!(
         "rendered the reference ({} spp) in {:.2} s",
@@ -79,6 +86,24 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         cli.out.join("filtered").join("report.html").display()
     );
     Ok(())
+}
+
+/// Makes `out` the demo's folder, holding `names`: new, empty or a
+/// previous demo's (its marker lists what it holds), so that files the
+/// demo did not write are never overwritten.
+fn claim(out: &Path, names: &[String]) -> anyhow::Result<()> {
+    Inputs::default().check_dir(out)?;
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
+    // What an earlier demo (of another scene) wrote stays ours too.
+    let mut all = guard::marked(out).unwrap_or_default();
+    all.extend(
+        names
+            .iter()
+            .filter(|n| !all.contains(n))
+            .cloned()
+            .collect::<Vec<_>>(),
+    );
+    Ok(guard::write_marker(out, &all)?)
 }
 
 fn main() -> ExitCode {

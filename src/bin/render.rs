@@ -8,6 +8,7 @@ use std::time::Instant;
 use clap::{Parser, ValueEnum};
 use pathdensity::dump::Order;
 use pathdensity::io::exr;
+use pathdensity::io::guard::{self, Inputs};
 use pathdensity::recon::ReconFilter;
 use pathdensity_render::sampler::independent_seed;
 use pathdensity_render::{RenderSettings, SceneName, render_dump, render_reference};
@@ -59,14 +60,12 @@ struct Cli {
     #[arg(long, value_enum, default_value_t = Recon::Box)]
     recon: Recon,
     /// Worker threads (default: one per core).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = pathdensity::cli::threads)]
     threads: usize,
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(cli.threads)
-        .build()?;
+    let pool = pathdensity::pipeline::thread_pool(cli.threads)?;
     let frames = cli.frames.unwrap_or(cli.scene.default_frames());
     let scene = cli.scene.build(frames);
     let mut st = RenderSettings {
@@ -80,6 +79,17 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         },
         seed: cli.seed,
     };
+    // Every output is checked before the render: each may replace only a
+    // file of its own kind, and the reference is not the dump.
+    if let Some(path) = &cli.reference_out {
+        for p in exr::reference_files(path, frames as usize) {
+            if p == cli.out {
+                anyhow::bail!("{}: is both the dump and the reference", p.display());
+            }
+            Inputs::default().check_file(&p, guard::looks_like_exr)?;
+        }
+    }
+    Inputs::default().check_file(&cli.out, guard::looks_like_dump)?;
     let t = Instant::now();
     let h = pool.install(|| render_dump(&scene, &st, &cli.out, &Bar::new("render")))?;
     let secs = t.elapsed().as_secs_f64();

@@ -2,14 +2,16 @@
 //! baselines, write the images, the decisions and the report.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Result, bail};
 
 use crate::config::{FilterConfig, Method};
-use crate::density::ExactSigma;
+use crate::density::{Decision, ExactSigma};
 use crate::dump::{DumpReader, Header};
 use crate::io::atomic::{self, Staging};
+use crate::io::guard::Inputs;
 use crate::io::{exr, png};
 use crate::pipeline::{self, RunOptions};
 use crate::progress::{Progress, Silent};
@@ -34,6 +36,9 @@ pub struct FilterOptions {
     pub html: bool,
     /// Film row of the slice plot (default: the middle row).
     pub slice_row: Option<u32>,
+    /// Files besides the dump and the reference that the outputs must not
+    /// replace or hold (a batch's other dumps), shared by a batch's runs.
+    pub protect: Arc<Inputs>,
 }
 
 impl FilterOptions {
@@ -49,6 +54,7 @@ impl FilterOptions {
             sigma_map: false,
             html: true,
             slice_row: None,
+            protect: Arc::default(),
         }
     }
 }
@@ -80,8 +86,9 @@ impl FilterOptions {
     }
 }
 
-/// Checks the decisions file can be written, before any work.
-fn check_decisions_path(p: &Path) -> Result<()> {
+/// Checks the decisions file can be written, before any work: its folder
+/// exists, it is no input, and it replaces only a previous decisions file.
+fn check_decisions_path(p: &Path, inputs: &Inputs) -> Result<()> {
     if p.is_dir() {
         bail!("{}: --decisions names a directory", p.display());
     }
@@ -90,7 +97,20 @@ fn check_decisions_path(p: &Path) -> Result<()> {
     {
         bail!("{}: no such directory for --decisions", parent.display());
     }
-    Ok(())
+    // A decisions file is one byte a record, each a `Decision`.
+    let decision_bytes = |head: &[u8]| head.iter().all(|&b| b <= Decision::Rejected as u8);
+    Ok(inputs.check_file(p, decision_bytes)?)
+}
+
+/// Every file the run reads, which no output may be or hold.
+fn inputs(opts: &FilterOptions, frames: usize) -> Inputs {
+    let mut inputs = Inputs::of([&opts.dump]);
+    if let Some(r) = &opts.reference {
+        for p in exr::reference_files(r, frames) {
+            inputs.add(&p);
+        }
+    }
+    inputs
 }
 
 /// Runs `opts` with no progress shown.
@@ -120,12 +140,15 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
         .as_ref()
         .map(|p| exr::read_reference(p, h.width as usize, h.height as usize, h.frames as usize))
         .transpose()?;
+    let inputs = inputs(opts, h.frames as usize);
     if let Some(p) = &opts.decisions {
-        check_decisions_path(p)?;
+        check_decisions_path(p, &inputs)?;
     }
     // Everything is written into a staging folder and swapped in at the
-    // end: OUTDIR holds exactly one complete run at any time.
-    let staging = Staging::create(&opts.out_dir)?;
+    // end: OUTDIR holds exactly one complete run at any time, and is
+    // replaced only when it is ours or new.
+    opts.protect.check_dir(&opts.out_dir)?;
+    let staging = Staging::create(&opts.out_dir, &inputs)?;
     let open_seconds = t_start.elapsed().as_secs_f64();
 
     let records = dump.records();
@@ -141,10 +164,61 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
             reference: reference.as_ref(),
             progress,
         },
-    )?;
+    );
+    dump.intact()?;
+    let run = run?;
+    let clock = Clock {
+        start: t_start,
+        started,
+        open_seconds,
+    };
+    // Errors name OUTDIR's files, not the hidden staging folder's.
+    let report = write_outputs(
+        opts,
+        &dump,
+        &run,
+        reference.as_ref(),
+        staging.path(),
+        &clock,
+    )
+    .map_err(|e| {
+        let staged = staging.path().display().to_string();
+        anyhow::anyhow!(
+            "{}",
+            format!("{e:#}").replace(&staged, &opts.out_dir.display().to_string())
+        )
+    })?;
+    // The hash and the slice plot read the records too.
+    dump.intact()?;
+    staging.commit()?;
+    // After the swap: the decisions file may be inside OUTDIR.
+    if let Some(p) = &opts.decisions {
+        atomic::write_bytes(p, &run.decisions)?;
+    }
+    Ok(report)
+}
 
+/// When the run started, and how long opening it took.
+struct Clock {
+    start: Instant,
+    started: u64,
+    open_seconds: f64,
+}
+
+/// Writes every output of `run` into `dir` and returns the report.
+fn write_outputs(
+    opts: &FilterOptions,
+    dump: &DumpReader,
+    run: &pipeline::Run,
+    reference: Option<&Image>,
+    dir: &Path,
+    clock: &Clock,
+) -> Result<FilterReport> {
+    let (t_start, started, open_seconds) = (clock.start, clock.started, clock.open_seconds);
+    let h = dump.header();
+    let records = dump.records();
+    let exact_sigma = opts.exact_sigma(h);
     let t_write = Instant::now();
-    let dir = staging.path();
     // Every image is written (and previewed) on its own: in parallel.
     let pool = pipeline::thread_pool(opts.threads)?;
     // The dump's hash (for the provenance) beside the images.
@@ -295,10 +369,5 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
     report.timing.total_seconds = t_start.elapsed().as_secs_f64();
     let json = serde_json::to_vec_pretty(&report).expect("the report serialises");
     atomic::write_bytes(&dir.join("report.json"), &json)?;
-    staging.commit()?;
-    // After the swap: the decisions file may be inside OUTDIR.
-    if let Some(p) = &opts.decisions {
-        atomic::write_bytes(p, &run.decisions)?;
-    }
     Ok(report)
 }

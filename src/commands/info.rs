@@ -71,6 +71,7 @@ pub fn info(path: &Path) -> Result<Info> {
         })
     };
     let channels = (valid > 0).then(|| [0, 1, 2].map(|c| channel(c).expect("valid values")));
+    dump.intact()?;
     Ok(Info {
         path: path.display().to_string(),
         header: h,

@@ -3,11 +3,24 @@
 
 use anyhow::{Result, anyhow, bail};
 
+use crate::dump::DumpReader;
 use crate::io::atomic::{self, Staging};
+use crate::io::exr;
+use crate::io::guard::Inputs;
 use crate::metrics::Metrics;
 use crate::progress::{Progress, Silent};
 use crate::report;
 use crate::sweep::{self, Sweep, SweepOptions};
+
+/// The dump and the reference, which the sweep's folder must not hold.
+fn inputs(o: &SweepOptions) -> Inputs {
+    let frames = DumpReader::open(&o.dump).map_or(1, |d| d.header().frames as usize);
+    let mut inputs = Inputs::of([&o.dump]);
+    for p in exr::reference_files(&o.reference, frames) {
+        inputs.add(&p);
+    }
+    inputs
+}
 
 /// Runs `o` with no progress shown.
 pub fn sweep(o: &SweepOptions) -> Result<Sweep> {
@@ -16,7 +29,7 @@ pub fn sweep(o: &SweepOptions) -> Result<Sweep> {
 
 /// Runs the sweep of `o` and writes its files.
 pub fn sweep_with_progress(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
-    let staging = Staging::create(&o.out_dir)?;
+    let staging = Staging::create(&o.out_dir, &inputs(o))?;
     let s = sweep::run(o, progress)?;
     let dir = staging.path();
     atomic::write_bytes(&dir.join("sweep.csv"), report::sweep::csv(&s).as_bytes())?;
@@ -110,7 +123,7 @@ pub fn equal_time(
     render_seconds: f64,
     progress: &dyn Progress,
 ) -> Result<String> {
-    let staging = Staging::create(&o.out_dir)?;
+    let staging = Staging::create(&o.out_dir, &inputs(o))?;
     let rows = sweep::equal_time(o, render_seconds, progress)?;
     let dir = staging.path();
     atomic::write_bytes(

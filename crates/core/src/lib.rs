@@ -12,7 +12,7 @@ pub use pathdensity_format::dump;
 
 /// Files in and out (from `pathdensity-format`).
 pub mod io {
-    pub use pathdensity_format::{atomic, exr};
+    pub use pathdensity_format::{atomic, exr, guard};
 }
 
 pub mod config;

@@ -30,6 +30,14 @@ pub fn wait_for(flag: &std::sync::atomic::AtomicBool) {
     }
 }
 
+/// The most worker threads a pool is given: more than the cores only
+/// cost (the results are the same for any count), and thousands exhaust
+/// the process table. Four a core, and never fewer than 64.
+pub fn max_threads() -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    (4 * cores).max(64)
+}
+
 #[cfg(not(feature = "parallel"))]
 pub use sequential::*;
 

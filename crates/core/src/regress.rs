@@ -12,7 +12,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::config::FilterConfig;
 use crate::dump::DumpReader;
-use crate::io::{atomic, exr};
+use crate::io::atomic::{self, Staging};
+use crate::io::exr;
+use crate::io::guard::{self, Inputs};
 use crate::metrics::Metrics;
 use crate::pipeline::{self, Run, RunOptions};
 use crate::progress::Silent;
@@ -129,10 +131,12 @@ pub fn find(root: &Path) -> Result<Vec<PathBuf>> {
     Ok(v)
 }
 
+/// The largest `manifest.json` read: a fixture's is a few kilobytes.
+const MANIFEST_LIMIT: u64 = 1 << 24;
+
 fn read_manifest(dir: &Path) -> Result<Manifest> {
     let path = dir.join("manifest.json");
-    let text = std::fs::read_to_string(&path)
-        .with_context(|| format!("{}: cannot read", path.display()))?;
+    let text = guard::read_input_text(&path, MANIFEST_LIMIT)?;
     serde_json::from_str(&text).with_context(|| format!("{}: not a manifest", path.display()))
 }
 
@@ -164,8 +168,9 @@ fn run(dir: &Path, m: &Manifest) -> Result<Outcome> {
             reference: Some(&reference),
             progress: &Silent,
         },
-    )
-    .with_context(|| format!("{}", dir.join("manifest.json").display()))?;
+    );
+    dump.intact()?;
+    let run = run.with_context(|| format!("{}", dir.join("manifest.json").display()))?;
     let mut images: Vec<(String, Image)> = Vec::new();
     for e in run.images.iter() {
         images.push((e.name(), e.image.clone()));
@@ -242,11 +247,11 @@ pub fn check(dir: &Path) -> Result<Vec<String>> {
     }
     for file in &want.images {
         let expected = dir.join("expected").join(file);
-        let (_, _, want_px) = exr::read_rgb(&expected)?;
         let Some((_, got_img)) = outcome.files.iter().find(|f| &f.0 == file) else {
             drift.push(format!("{file}: no longer written"));
             continue;
         };
+        let (_, _, want_px) = exr::read_rgb(&expected, got_img.width * got_img.height)?;
         let got_px = &got_img.data;
         let (mut n, mut worst) = (0usize, (0.0f64, 0usize));
         for (i, (a, b)) in got_px.iter().zip(&want_px).enumerate() {
@@ -274,18 +279,38 @@ pub fn check(dir: &Path) -> Result<Vec<String>> {
 pub fn bless(dir: &Path) -> Result<Manifest> {
     let mut m = read_manifest(dir)?;
     let outcome = run(dir, &m)?;
-    m.expected = outcome.expected;
+    let old_images = std::mem::replace(&mut m.expected, outcome.expected).images;
     let expected_dir = dir.join("expected");
-    if expected_dir.exists() {
-        std::fs::remove_dir_all(&expected_dir)
-            .with_context(|| format!("{}: cannot clear", expected_dir.display()))?;
-    }
-    std::fs::create_dir_all(&expected_dir)
-        .with_context(|| format!("{}: cannot create", expected_dir.display()))?;
+    adopt(&expected_dir, &old_images)?;
+    // The images are staged and swapped in whole, then the manifest is
+    // replaced: an interruption leaves the old expectations, or the new
+    // images beside the old manifest (a drift the next bless repairs).
+    let inputs = Inputs::of([dir.join(&m.dump), dir.join(&m.reference)]);
+    let staging = Staging::create(&expected_dir, &inputs)?;
     for (file, img) in &outcome.files {
-        exr::write_frame(&expected_dir.join(file), img, 0)?;
+        exr::write_frame(&staging.path().join(file), img, 0)?;
     }
+    staging.commit()?;
     let json = serde_json::to_string_pretty(&m).expect("a manifest serialises") + "\n";
     atomic::write_bytes(&dir.join("manifest.json"), json.as_bytes())?;
     Ok(m)
+}
+
+/// Marks `expected` as ours when it holds nothing but the images its
+/// manifest lists (fixtures written before folders carried the marker),
+/// so that [`Staging::create`] replaces it; anything else in it keeps it
+/// refused.
+fn adopt(expected: &Path, images: &[String]) -> Result<()> {
+    if !expected.is_dir() || expected.join(guard::MARKER).exists() {
+        return Ok(());
+    }
+    let listing = std::fs::read_dir(expected).with_context(|| format!("{}", expected.display()))?;
+    for e in listing {
+        let e = e.with_context(|| format!("{}", expected.display()))?;
+        let name = e.file_name().to_string_lossy().into_owned();
+        if !images.contains(&name) || !e.file_type().is_ok_and(|t| t.is_file()) {
+            return Ok(());
+        }
+    }
+    Ok(guard::write_marker(expected, images)?)
 }

@@ -10,6 +10,28 @@ use std::sync::Mutex;
 use tempfile::{NamedTempFile, TempDir};
 
 use crate::Error;
+use crate::guard::{self, Inputs};
+
+/// A temporary file or folder named `.NAME.XXXXXX.SUFFIX`, created with
+/// the permissions of an ordinary file or folder (0666 or 0777 less the
+/// umask), not `tempfile`'s private 0600: outputs are read by other users
+/// and web servers on a farm.
+fn builder<'a>(prefix: &'a str, suffix: &'a str, dir: bool) -> tempfile::Builder<'a, 'a> {
+    let mut b = tempfile::Builder::new();
+    b.prefix(prefix).suffix(suffix);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        b.permissions(std::fs::Permissions::from_mode(if dir {
+            0o777
+        } else {
+            0o666
+        }));
+    }
+    #[cfg(not(unix))]
+    let _ = dir;
+    b
+}
 
 /// `e` without the temporary path `tempfile` adds to its message (the
 /// caller names the destination instead).
@@ -80,9 +102,7 @@ impl AtomicFile {
             Some(p) if !p.as_os_str().is_empty() => p,
             _ => Path::new("."),
         };
-        let tmp = tempfile::Builder::new()
-            .prefix(&format!(".{name}."))
-            .suffix(".tmp")
+        let tmp = builder(&format!(".{name}."), ".tmp", false)
             .tempfile_in(dir)
             .map_err(|e| Error::format(&dest, format!("cannot create: {}", bare(&e))))?;
         register(tmp.path());
@@ -137,18 +157,22 @@ impl Drop for AtomicFile {
 /// [`Staging::commit`], so the destination always holds exactly one
 /// complete run: the previous one until the swap, the new one after.
 /// Dropped uncommitted, the staging folder is removed.
+///
+/// The destination is replaced only when it is ours or new
+/// ([`Inputs::check_dir`]): the folder swapped in carries
+/// [`guard::MARKER`], so it is recognisably ours.
 pub struct Staging {
     dir: Option<TempDir>,
     dest: PathBuf,
 }
 
 impl Staging {
-    /// Creates the staging folder (and the destination's parent).
-    pub fn create(dest: impl AsRef<Path>) -> Result<Staging, Error> {
+    /// Creates the staging folder (and the destination's parent), once
+    /// `dest` is known to be replaceable: new, empty, or a previous run's,
+    /// and holding none of `inputs`.
+    pub fn create(dest: impl AsRef<Path>, inputs: &Inputs) -> Result<Staging, Error> {
         let dest = dest.as_ref().to_path_buf();
-        if dest.exists() && !dest.is_dir() {
-            return Err(Error::format(&dest, "exists and is not a directory"));
-        }
+        inputs.check_dir(&dest)?;
         let name = dest
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
@@ -159,9 +183,7 @@ impl Staging {
         };
         std::fs::create_dir_all(&parent)
             .map_err(|e| Error::format(&dest, format!("cannot create its parent folder: {e}")))?;
-        let dir = tempfile::Builder::new()
-            .prefix(&format!(".{name}."))
-            .suffix(".staging")
+        let dir = builder(&format!(".{name}."), ".staging", true)
             .tempdir_in(&parent)
             .map_err(|e| Error::format(&dest, format!("cannot write beside it: {}", bare(&e))))?;
         register(dir.path());
@@ -180,11 +202,13 @@ impl Staging {
         &self.dest
     }
 
-    /// Swaps the staging folder in for the destination and removes the
-    /// previous run's folder.
+    /// Marks the staging folder as ours ([`guard::MARKER`], listing what
+    /// it holds), swaps it in for the destination and removes the previous
+    /// run's folder.
     pub fn commit(mut self) -> Result<(), Error> {
         let dir = self.dir.take().expect("committed once");
         let staged = dir.path().to_path_buf();
+        guard::mark_all(&staged).map_err(|e| Error::format(&self.dest, e.to_string()))?;
         let done = swap_in(&staged, &self.dest);
         if done.is_ok() && !staged.exists() {
             let _ = dir.keep();

@@ -1,6 +1,7 @@
 //! EXR images: written as 32-bit float RGB, clamped to the finite range,
 //! under a temporary name and renamed when complete.
 
+use std::io::Seek;
 use std::path::Path;
 
 use exr::prelude::*;
@@ -50,16 +51,41 @@ pub fn frame_file_name(name: &str, frame: usize, frames: usize, ext: &str) -> St
     }
 }
 
-/// Reads the RGB channels of an EXR (alpha, if any, is ignored).
-pub fn read_rgb(path: &Path) -> Result<(usize, usize, Vec<[f64; 3]>)> {
-    let img = read_first_rgba_layer_from_file(
-        path,
-        |res, _| (res.width(), vec![[0.0f64; 3]; res.width() * res.height()]),
-        |(w, px): &mut (usize, Vec<[f64; 3]>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            px[pos.y() * *w + pos.x()] = [r as f64, g as f64, b as f64];
-        },
-    )
-    .map_err(|e| Error::format(path, format!("cannot read EXR: {e}")))?;
+/// The most pixels an EXR may have where nothing else bounds it (`import
+/// images`): 8192 × 8192, about 1.6 GB while read.
+pub const MAX_PIXELS: usize = 1 << 26;
+
+/// Reads the RGB channels of an EXR (alpha, if any, is ignored), refusing
+/// it before any pixel is allocated when it claims more than `max_pixels`
+/// pixels: the size is read from its header first.
+pub fn read_rgb(path: &Path, max_pixels: usize) -> Result<(usize, usize, Vec<[f64; 3]>)> {
+    let mut file = std::io::BufReader::new(crate::guard::open_input(path)?);
+    let cannot = |e: exr::error::Error| Error::format(path, format!("cannot read EXR: {e}"));
+    let meta = exr::meta::MetaData::read_from_buffered(&mut file, false).map_err(cannot)?;
+    for h in &meta.headers {
+        let (w, h) = (h.layer_size.width(), h.layer_size.height());
+        if w.checked_mul(h).is_none_or(|n| n > max_pixels) {
+            return Err(Error::format(
+                path,
+                format!("claims {w} × {h} pixels, more than the {max_pixels} expected"),
+            ));
+        }
+    }
+    file.seek(std::io::SeekFrom::Start(0))
+        .map_err(|e| Error::io(path, e))?;
+    let img = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            |res, _| (res.width(), vec![[0.0f64; 3]; res.width() * res.height()]),
+            |(w, px): &mut (usize, Vec<[f64; 3]>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                px[pos.y() * *w + pos.x()] = [r as f64, g as f64, b as f64];
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(file)
+        .map_err(cannot)?;
     let size = img.layer_data.size;
     Ok((
         size.width(),
@@ -88,7 +114,7 @@ pub fn reference_files(path: &Path, frames: usize) -> Vec<std::path::PathBuf> {
 pub fn read_reference(path: &Path, width: usize, height: usize, frames: usize) -> Result<Image> {
     let mut img = Image::new(width, height, frames);
     for (f, p) in reference_files(path, frames).iter().enumerate() {
-        let (w, h, px) = read_rgb(p)?;
+        let (w, h, px) = read_rgb(p, width * height)?;
         if (w, h) != (width, height) {
             return Err(Error::format(
                 p,
@@ -130,7 +156,7 @@ mod tests {
             write_frame(&p, &img, 0).unwrap();
             assert!(std::fs::read(&p).unwrap() == want, "write {i} differs");
         }
-        let (w, h, px) = read_rgb(&first).unwrap();
+        let (w, h, px) = read_rgb(&first, MAX_PIXELS).unwrap();
         assert_eq!((w, h), (256, 192));
         assert_eq!(px[1000][1], img.data[1000][1] as f32 as f64);
     }

@@ -5,6 +5,7 @@
 pub mod atomic;
 pub mod dump;
 pub mod exr;
+pub mod guard;
 pub mod image;
 
 /// Everything that can go wrong reading or writing this crate's files.

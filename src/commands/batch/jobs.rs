@@ -5,9 +5,10 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 
 use crate::config::FilterConfig;
+use crate::io::guard;
 
 /// One dump to filter into `OUTDIR/name/`.
 #[derive(Clone, Debug, PartialEq)]
@@ -50,7 +51,7 @@ pub fn collect(inputs: &Inputs) -> Result<Vec<Job>> {
         }
     }
     if let Some(m) = inputs.manifest {
-        let text = std::fs::read_to_string(m).with_context(|| format!("{}", m.display()))?;
+        let text = guard::read_input_text(m, MANIFEST_LIMIT)?;
         let base = m.parent().unwrap_or(Path::new(""));
         for job in parse_manifest(&text, base, inputs.config)
             .map_err(|e| anyhow::anyhow!("{}:{e}", m.display()))?
@@ -66,6 +67,13 @@ pub fn collect(inputs: &Inputs) -> Result<Vec<Job>> {
     }
     let mut seen: BTreeMap<&str, &Path> = BTreeMap::new();
     for j in &jobs {
+        if reserved(&j.name) {
+            bail!(
+                "{}: its output name {:?} is one the batch writes itself (summaries, shard files): rename it, or name it in a manifest (--name)",
+                j.dump.display(),
+                j.name
+            );
+        }
         if let Some(first) = seen.insert(&j.name, &j.dump) {
             bail!(
                 "{} and {} would both write OUTDIR/{}: rename one, or name them in a manifest (--name)",
@@ -76,6 +84,20 @@ pub fn collect(inputs: &Inputs) -> Result<Vec<Job>> {
         }
     }
     Ok(jobs)
+}
+
+/// The largest manifest read (a line a dump: millions of dumps).
+const MANIFEST_LIMIT: u64 = 1 << 28;
+
+/// Names in OUTDIR that the batch writes itself, and names that are not
+/// one folder: no dump's output may have them.
+fn reserved(name: &str) -> bool {
+    let ours = ["summary.csv", "summary.json", "summary.html", guard::MARKER];
+    ours.contains(&name)
+        || (name.starts_with("batch-shard-") && name.ends_with(".json"))
+        || name.is_empty()
+        || name.starts_with('.')
+        || name.contains(['/', '\\'])
 }
 
 fn stem(p: &Path) -> String {

@@ -25,13 +25,14 @@ pub mod summary;
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use anyhow::{Context, Result, bail};
 
 use super::filter::{self, FilterOptions};
 use crate::config::FilterConfig;
 use crate::dump::{DumpReader, Record};
-use crate::io::{atomic, exr};
+use crate::io::{atomic, exr, guard};
 use crate::progress::Progress;
 use jobs::{Inputs, Job};
 use shard::Shard;
@@ -170,14 +171,25 @@ pub fn batch(opts: &BatchOptions, progress: &dyn Progress) -> Result<Outcome> {
         .filter(|&(_, &s)| s == opts.shard.index)
         .map(|((j, &size), _)| (j, size))
         .collect();
+    // OUTDIR is never replaced whole (it may hold the dumps), but the
+    // summaries and shard files it gets replace only files of ours.
+    guard::check_ours(&opts.out_dir)?;
     std::fs::create_dir_all(&opts.out_dir)
         .with_context(|| format!("{}: cannot create", opts.out_dir.display()))?;
+    if !opts.out_dir.join(guard::MARKER).exists() {
+        guard::write_marker::<&str>(&opts.out_dir, &[])?;
+    }
 
+    // No dump's folder may hold any dump or reference of the batch.
+    let protect = Arc::new(guard::Inputs::of(
+        all.iter()
+            .flat_map(|j| std::iter::once(&j.dump).chain(&j.reference)),
+    ));
     let samples = |size: u64| size / std::mem::size_of::<Record>() as u64;
     progress.set_length(mine.iter().map(|&(_, size)| samples(size)).sum());
     let mut entries: Vec<Entry> = Vec::with_capacity(mine.len());
     for (job, size) in mine {
-        let entry = run_job(job, opts, &Within(progress));
+        let entry = run_job(job, opts, &protect, &Within(progress));
         if entry.status != Status::Filtered {
             progress.inc(samples(size));
         }
@@ -224,7 +236,7 @@ pub fn merge(out_dir: &Path) -> Result<Outcome> {
             .and_then(|n| n.to_str())
             .is_some_and(|n| n.starts_with("batch-shard-") && n.ends_with(".json"));
         if is_shard {
-            let text = std::fs::read(&path).with_context(|| format!("{}", path.display()))?;
+            let text = guard::read_input(&path, SHARD_FILE_LIMIT)?;
             let f: ShardFile = serde_json::from_slice(&text)
                 .map_err(|e| anyhow::anyhow!("{}: not a shard file: {e}", path.display()))?;
             files.push(f);
@@ -267,6 +279,9 @@ pub fn merge(out_dir: &Path) -> Result<Outcome> {
     })
 }
 
+/// The largest shard file read (a line or two a dump).
+const SHARD_FILE_LIMIT: u64 = 1 << 30;
+
 /// What one shard did, for [`merge`].
 #[derive(serde::Serialize, serde::Deserialize)]
 struct ShardFile {
@@ -307,8 +322,14 @@ impl Progress for Within<'_> {
     }
 }
 
-fn run_job(job: &Job, opts: &BatchOptions, progress: &dyn Progress) -> Entry {
+fn run_job(
+    job: &Job,
+    opts: &BatchOptions,
+    protect: &Arc<guard::Inputs>,
+    progress: &dyn Progress,
+) -> Entry {
     let mut f = FilterOptions::new(&job.dump, opts.out_dir.join(&job.name));
+    f.protect = Arc::clone(protect);
     f.config = job.config;
     f.threads = opts.threads;
     f.html = opts.html;

@@ -10,6 +10,8 @@ pub struct Shard {
 
 impl Shard {
     pub const WHOLE: Shard = Shard { index: 0, count: 1 };
+    /// The most shards a batch may have: the partition keeps a load each.
+    pub const MAX_COUNT: usize = 1 << 20;
 }
 
 impl std::str::FromStr for Shard {
@@ -23,6 +25,12 @@ impl std::str::FromStr for Shard {
         );
         if index >= count {
             return Err(bad());
+        }
+        if count > Shard::MAX_COUNT {
+            return Err(format!(
+                "{count} shards: at most {} (one a dump is the most that helps)",
+                Shard::MAX_COUNT
+            ));
         }
         Ok(Shard { index, count })
     }
@@ -67,7 +75,15 @@ mod tests {
     #[test]
     fn parses_and_refuses() {
         assert_eq!("1/4".parse(), Ok(Shard { index: 1, count: 4 }));
-        for bad in ["4/4", "1", "a/2", "0/0", "-1/2"] {
+        for bad in [
+            "4/4",
+            "1",
+            "a/2",
+            "0/0",
+            "-1/2",
+            "0/1000000000000",
+            "0/18446744073709551615",
+        ] {
             assert!(bad.parse::<Shard>().is_err(), "{bad}");
         }
     }

@@ -13,7 +13,7 @@ use plotters::prelude::*;
 use super::{Entry, Status};
 use crate::config::Method;
 use crate::density::FilterCounts;
-use crate::io::atomic;
+use crate::io::{atomic, guard};
 use crate::metrics::{ImageMetrics, Metrics};
 use crate::pipeline::image_name;
 use crate::report::Timing;
@@ -54,10 +54,13 @@ pub struct ProvenanceDigest {
     pub reference_xxh3: Option<String>,
 }
 
+/// The largest `report.json` read back (a few kilobytes a frame).
+const REPORT_LIMIT: u64 = 1 << 28;
+
 impl ReportDigest {
     /// `dir/report.json`, if it is there and reads.
     pub fn read(dir: &Path) -> Option<ReportDigest> {
-        let bytes = std::fs::read(dir.join("report.json")).ok()?;
+        let bytes = guard::read_input(&dir.join("report.json"), REPORT_LIMIT).ok()?;
         serde_json::from_slice(&bytes).ok()
     }
 }

@@ -5,20 +5,20 @@
 //! by pixel, row 0 first, every sample of a pixel together. Positions are
 //! not stored: records sit at pixel centres (see [`crate::images`]).
 
-use std::fs::File;
 use std::io::{BufReader, Read};
 use std::path::Path;
 
-use pathdensity_format::Error;
 use pathdensity_format::dump::Order;
+use pathdensity_format::{Error, guard};
 
-use crate::{Imported, Sink, at_centre, header};
+use crate::{Imported, Sink, at_centre, check_out, header};
 
 const HEADER_BYTES: u64 = 20;
 
 /// Writes `out` from the samples of `input`.
 pub fn import(input: &Path, out: &Path) -> Result<Imported, Error> {
-    let file = File::open(input).map_err(|e| Error::io(input, e))?;
+    check_out(out, &[input])?;
+    let file = guard::open_input(input)?;
     let size = file.metadata().map_err(|e| Error::io(input, e))?.len();
     let mut reader = BufReader::with_capacity(1 << 20, file);
     let mut fixed = [0u8; HEADER_BYTES as usize];

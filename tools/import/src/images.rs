@@ -13,19 +13,20 @@ use std::path::{Path, PathBuf};
 use pathdensity_format::dump::Order;
 use pathdensity_format::{Error, exr};
 
-use crate::{Imported, Sink, at_centre, header};
+use crate::{Imported, Sink, at_centre, check_out, header};
 
 /// Writes `out` from `inputs`, in the order given (it is the replay order).
 pub fn import(inputs: &[PathBuf], out: &Path) -> Result<Imported, Error> {
     let Some(first) = inputs.first() else {
         return Err(Error::format(out, "no images to import"));
     };
+    check_out(out, inputs)?;
     let spp = u32::try_from(inputs.len())
         .map_err(|_| Error::format(out, format!("{} images are too many", inputs.len())))?;
     let mut sink: Option<Sink> = None;
     let mut size = (0, 0);
     for path in inputs {
-        let (w, h, pixels) = exr::read_rgb(path)?;
+        let (w, h, pixels) = exr::read_rgb(path, exr::MAX_PIXELS)?;
         let (w32, h32) = match (u32::try_from(w), u32::try_from(h)) {
             (Ok(a), Ok(b)) => (a, b),
             _ => {

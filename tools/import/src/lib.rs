@@ -17,6 +17,7 @@ use std::path::Path;
 
 use pathdensity_format::Error;
 use pathdensity_format::dump::{DumpWriter, Header, InvalidCounts, Order, Record, Validity};
+use pathdensity_format::guard::{self, Inputs};
 
 /// What an import wrote: the dump's header and how many of its records the
 /// filter will use. Invalid records are kept in the dump, as any renderer's
@@ -60,6 +61,12 @@ struct Sink {
     header: Header,
     valid: u64,
     invalid: InvalidCounts,
+}
+
+/// Refuses `out` before any work when it is one of `inputs` or an existing
+/// file that is not a dump.
+fn check_out<P: AsRef<Path>>(out: &Path, inputs: &[P]) -> Result<(), Error> {
+    Inputs::of(inputs).check_file(out, guard::looks_like_dump)
 }
 
 impl Sink {

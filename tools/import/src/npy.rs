@@ -3,14 +3,13 @@
 //! stores them (docs/format.md). The film's size is not in the file, so the
 //! caller gives it.
 
-use std::fs::File;
 use std::io::{BufReader, Read};
 use std::path::Path;
 
-use pathdensity_format::Error;
 use pathdensity_format::dump::{Order, Record};
+use pathdensity_format::{Error, guard};
 
-use crate::{Imported, Sink, header};
+use crate::{Imported, Sink, check_out, header};
 
 /// What the array does not say about the film.
 #[derive(Clone, Copy, Debug)]
@@ -29,7 +28,8 @@ const CHUNK_RECORDS: usize = 1 << 16;
 
 /// Writes `out` from the records of `input`.
 pub fn import(input: &Path, film: Film, out: &Path) -> Result<Imported, Error> {
-    let file = File::open(input).map_err(|e| Error::io(input, e))?;
+    check_out(out, &[input])?;
+    let file = guard::open_input(input)?;
     let size = file.metadata().map_err(|e| Error::io(input, e))?.len();
     let mut reader = BufReader::with_capacity(1 << 20, file);
     let (rows, data_offset) = read_header(&mut reader, input)?;

@@ -153,7 +153,7 @@ impl Run {
 pub fn thread_pool(threads: usize) -> Result<crate::par::ThreadPool, PipelineError> {
     #[cfg(feature = "parallel")]
     return Ok(rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
+        .num_threads(threads.min(crate::par::max_threads()))
         .build()?);
     #[cfg(not(feature = "parallel"))]
     {

@@ -153,6 +153,7 @@ pub fn equal_time(
         progress.inc(1);
     }
     progress.finish();
+    dump.intact()?;
     Ok(rows)
 }
 

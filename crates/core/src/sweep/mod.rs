@@ -287,6 +287,7 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
         progress.inc(1);
     }
     progress.finish();
+    dump.intact()?;
     Ok(Sweep {
         dump: o.dump.display().to_string(),
         reference: o.reference.display().to_string(),

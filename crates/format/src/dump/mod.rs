@@ -8,6 +8,8 @@
 mod header;
 mod reader;
 mod record;
+#[cfg(unix)]
+mod shrink;
 mod writer;
 
 pub use header::{HEADER_LEN_MAX, Header, MAGIC, Order, VERSION};

@@ -1,4 +1,3 @@
-use std::fs::File;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
@@ -16,6 +15,9 @@ pub struct DumpReader {
     path: PathBuf,
     header: Header,
     header_len: usize,
+    /// Declared before `map`: the watch ends before the unmapping.
+    #[cfg(unix)]
+    watch: Option<super::shrink::Watch>,
     map: Option<Mmap>,
 }
 
@@ -26,12 +28,8 @@ impl DumpReader {
     pub fn open(path: impl AsRef<Path>) -> Result<DumpReader, DumpError> {
         let path = path.as_ref();
         let err = |p: String| DumpError::format(path, p);
-        let mut file = File::open(path).map_err(|e| DumpError::io(path, e))?;
-        let meta = file.metadata().map_err(|e| DumpError::io(path, e))?;
-        if !meta.is_file() {
-            return Err(err("not a regular file".into()));
-        }
-        let size = meta.len();
+        let mut file = crate::guard::open_input(path)?;
+        let size = file.metadata().map_err(|e| DumpError::io(path, e))?.len();
         // The prefix is at most data_offset(HEADER_LEN_MAX) bytes: a bounded
         // read whatever the header claims.
         let mut prefix = Vec::new();
@@ -42,8 +40,8 @@ impl DumpReader {
         let (header, header_len) = parse_prefix(&prefix, size).map_err(err)?;
         let expected = size;
         let map = if header.sample_count > 0 {
-            // SAFETY: the file is opened read-only; a concurrent truncation by
-            // another process is outside what any mmap reader can defend against.
+            // SAFETY: the file is opened read-only; a concurrent truncation
+            // by another process is caught by the watch (`intact`).
             Some(unsafe { Mmap::map(&file) }.map_err(|e| DumpError::io(path, e))?)
         } else {
             None
@@ -60,8 +58,30 @@ impl DumpReader {
             path: path.to_path_buf(),
             header,
             header_len,
+            #[cfg(unix)]
+            watch: map
+                .as_ref()
+                .map(|m| super::shrink::Watch::new(m.as_ptr(), m.len())),
             map,
         })
+    }
+
+    /// Refuses what was read when the file shrank while it was mapped (the
+    /// records past its new end read as zeros): what a caller checks
+    /// before it keeps any result made from [`DumpReader::records`].
+    pub fn intact(&self) -> Result<(), DumpError> {
+        #[cfg(unix)]
+        if self.watch.as_ref().is_some_and(|w| w.shrunk()) {
+            let now = std::fs::metadata(&self.path).map_or(0, |m| m.len());
+            let was = self.map.as_ref().map_or(0, |m| m.len());
+            return Err(DumpError::format(
+                &self.path,
+                format!(
+                    "the file shrank while it was read ({now} bytes now, {was} when opened): nothing was written from it"
+                ),
+            ));
+        }
+        Ok(())
     }
 
     pub fn path(&self) -> &Path {

@@ -6,6 +6,7 @@ use memmap2::MmapMut;
 
 use super::{DumpError, Header, Record};
 use crate::atomic::AtomicFile;
+use crate::guard::{self, Inputs};
 
 /// Streams records into a new dump. The header's `sample_count` is patched
 /// on [`DumpWriter::finish`], which also renames the file into place.
@@ -19,6 +20,7 @@ pub struct DumpWriter {
 impl DumpWriter {
     pub fn create(path: impl AsRef<Path>, header: Header) -> Result<DumpWriter, DumpError> {
         let path = path.as_ref();
+        Inputs::default().check_file(path, guard::looks_like_dump)?;
         let file = AtomicFile::create(path)?;
         let f = file
             .file()
@@ -85,6 +87,7 @@ impl PresizedDump {
         let prefix = header
             .prefix_bytes()
             .map_err(|p| DumpError::format(path, p))?;
+        Inputs::default().check_file(path, guard::looks_like_dump)?;
         let file = AtomicFile::create(path)?;
         let mut f = file.file();
         let total = prefix.len() as u64 + 24 * header.sample_count;
