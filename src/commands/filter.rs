@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 
 use crate::config::{FilterConfig, Method};
 use crate::density::{Decision, ExactSigma};
@@ -166,7 +166,8 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
         },
     );
     dump.intact()?;
-    let run = run?;
+    // A property of the dump (no valid sample, too large a film) names it.
+    let run = run.with_context(|| opts.dump.display().to_string())?;
     let clock = Clock {
         start: t_start,
         started,

@@ -1,7 +1,7 @@
 //! `pathdensity sweep`: the filter over a grid of parameters, written as
 //! `sweep.csv`, `sweep.json` and two plots, each as SVG and PNG.
 
-use anyhow::{Result, anyhow, bail};
+use anyhow::{Context, Result, anyhow, bail};
 
 use crate::dump::DumpReader;
 use crate::io::atomic::{self, Staging};
@@ -30,7 +30,7 @@ pub fn sweep(o: &SweepOptions) -> Result<Sweep> {
 /// Runs the sweep of `o` and writes its files.
 pub fn sweep_with_progress(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
     let staging = Staging::create(&o.out_dir, &inputs(o))?;
-    let s = sweep::run(o, progress)?;
+    let s = sweep::run(o, progress).with_context(|| o.dump.display().to_string())?;
     let dir = staging.path();
     atomic::write_bytes(&dir.join("sweep.csv"), report::sweep::csv(&s).as_bytes())?;
     let json = serde_json::to_vec_pretty(&s).expect("a sweep serialises");
@@ -124,7 +124,8 @@ pub fn equal_time(
     progress: &dyn Progress,
 ) -> Result<String> {
     let staging = Staging::create(&o.out_dir, &inputs(o))?;
-    let rows = sweep::equal_time(o, render_seconds, progress)?;
+    let rows = sweep::equal_time(o, render_seconds, progress)
+        .with_context(|| o.dump.display().to_string())?;
     let dir = staging.path();
     atomic::write_bytes(
         &dir.join("equal_time.csv"),

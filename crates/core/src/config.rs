@@ -229,6 +229,33 @@ impl FilterConfig {
                 format!("must be `auto` or a positive number, got {v}"),
             );
         }
+        // A scale divides distances that are then squared: outside this
+        // range the squares leave the finite doubles and the images turn
+        // to NaN.
+        let white = match self.white {
+            White::Fixed(v) => v,
+            White::Auto => 1.0,
+        };
+        for (field, v) in [
+            ("sigma_image", self.sigma_image),
+            ("sigma_color", self.sigma_color),
+            ("sigma_time", self.sigma_time),
+            ("bilateral_sigma_s", self.bilateral_sigma_s),
+            ("bilateral_sigma_r", self.bilateral_sigma_r),
+            ("energy_sigma", self.energy_sigma),
+            ("rwmc_start", self.rwmc_start),
+            ("rwmc_kappa", self.rwmc_kappa),
+            ("white", white),
+        ] {
+            if !(SCALE_MIN..=SCALE_MAX).contains(&v) {
+                return bad(
+                    field,
+                    format!(
+                        "must lie in [{SCALE_MIN:e}, {SCALE_MAX:e}], where its square stays a finite number, got {v:e}"
+                    ),
+                );
+            }
+        }
         if !crate::imagespace::oidn::AVAILABLE {
             let why = "needs OIDN, and this build has none: build with `--features oidn` \
                        after `bash tools/oidn/setup.sh` (README, \"OIDN\")";
@@ -258,6 +285,15 @@ impl FilterConfig {
             return bad(
                 "rwmc_base",
                 format!("must be above 1, got {}", self.rwmc_base),
+            );
+        }
+        let last = self.rwmc_start * self.rwmc_base.powi(self.rwmc_cascades as i32 - 1);
+        if last > SCALE_MAX {
+            return bad(
+                "rwmc_base",
+                format!(
+                    "makes the last cascade's scale rwmc_start × rwmc_base^(rwmc_cascades − 1) = {last:e}, above {SCALE_MAX:e}"
+                ),
             );
         }
         if !(self.rwmc_min_luminance.is_finite() && self.rwmc_min_luminance >= 0.0) {
@@ -309,6 +345,12 @@ impl Default for FilterConfig {
         FilterConfig::DEFAULT
     }
 }
+
+/// The smallest and largest scale a configuration takes (σ, κ, the
+/// white): far beyond any real scene, well inside the finite doubles once
+/// squared.
+pub const SCALE_MIN: f64 = 1e-100;
+pub const SCALE_MAX: f64 = 1e100;
 
 /// A configuration field with a value it cannot take.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]

@@ -13,14 +13,10 @@ pub fn resolve_white(
     config: &FilterConfig,
     records: &[Record],
     header: &Header,
-) -> Result<f64, ConfigError> {
+) -> Result<f64, PipelineError> {
     match config.white {
         White::Fixed(v) => Ok(v),
-        White::Auto => auto_white(records, header).ok_or_else(|| ConfigError {
-            field: "white",
-            problem: "auto needs a valid sample of positive luminance, and the dump has none"
-                .into(),
-        }),
+        White::Auto => auto_white(records, header).ok_or(PipelineError::NoWhite),
     }
 }
 

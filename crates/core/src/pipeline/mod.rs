@@ -6,6 +6,7 @@
 
 mod check;
 pub mod estimate;
+pub mod memory;
 pub mod methods;
 
 use std::collections::BTreeMap;
@@ -25,12 +26,27 @@ use methods::Method;
 /// Why a run could not start.
 #[derive(Debug, thiserror::Error)]
 pub enum PipelineError {
-    #[error("invalid configuration: {0}")]
+    // The cause is the source, printed once by `{:#}`.
+    #[error("invalid configuration")]
     Config(#[from] ConfigError),
     #[error("cannot start the worker threads: {0}")]
     Threads(#[from] crate::par::ThreadPoolBuildError),
     #[error("no valid sample: every record is non-finite or outside the film (see `info`)")]
     NoValidSample,
+    #[error(
+        "--white auto needs a valid sample of positive luminance, and the dump has none (give --white a number)"
+    )]
+    NoWhite,
+    #[error(
+        "its {film} film needs about {:.1} GB for the images, and this machine has {:.1} GB free (fewer --methods, or a smaller film)",
+        *needed as f64 / 1e9,
+        *free as f64 / 1e9
+    )]
+    Memory {
+        needed: u64,
+        free: u64,
+        film: String,
+    },
     #[error("{method}: {problem}")]
     Method { method: String, problem: String },
 }
@@ -255,6 +271,7 @@ pub fn run(
     options: &RunOptions,
 ) -> Result<Run, PipelineError> {
     config.validate()?;
+    memory::check(config, header)?;
     let pool = thread_pool(options.threads)?;
     let shared = Shared::new(records, header);
     let wanted = images_of(config);
