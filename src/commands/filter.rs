@@ -147,8 +147,8 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
     // Everything is written into a staging folder and swapped in at the
     // end: OUTDIR holds exactly one complete run at any time, and is
     // replaced only when it is ours or new.
-    opts.protect.check_dir(&opts.out_dir)?;
     let staging = Staging::create(&opts.out_dir, &inputs)?;
+    opts.protect.check_dir(&opts.out_dir)?;
     let open_seconds = t_start.elapsed().as_secs_f64();
 
     let records = dump.records();
