@@ -12,6 +12,7 @@ use pathdensity::config::{
 };
 use pathdensity::density::IndexKind;
 use pathdensity::dump::Order;
+use pathdensity::pipeline::PipelineError;
 use pathdensity::sweep::SweepOptions;
 use pathdensity::synth::SynthParams;
 
@@ -594,7 +595,13 @@ fn main() -> ExitCode {
         Ok(code) => code,
         Err(e) => {
             // A configuration field is a flag here: `sigma_color` is --sigma-color.
-            if let Some(c) = e.chain().find_map(|c| c.downcast_ref::<ConfigError>()) {
+            let config_error = e.chain().find_map(|c| {
+                c.downcast_ref::<ConfigError>().or(match c.downcast_ref() {
+                    Some(PipelineError::Config(c)) => Some(c),
+                    _ => None,
+                })
+            });
+            if let Some(c) = config_error {
                 eprintln!("pathdensity: --{} {}", c.field.replace('_', "-"), c.problem);
                 return ExitCode::from(EXIT_USAGE);
             }

@@ -82,6 +82,7 @@ fn filter_writes_images_decisions_and_a_report() {
     assert_eq!(
         files(&out),
         [
+            ".pathdensity-output",
             "bilateral.exr",
             "bilateral.png",
             "clamp.exr",
@@ -171,7 +172,8 @@ fn every_output_is_bit_identical_for_1_2_and_8_threads() {
                 .into_iter()
                 .filter(|f| !f.starts_with("report."))
                 .collect();
-            assert_eq!(names.len(), 31);
+            // 31 outputs and the folder's marker.
+            assert_eq!(names.len(), 32);
             let mut v: Vec<Vec<u8>> = names
                 .iter()
                 .map(|f| std::fs::read(out.join(f)).unwrap())
@@ -255,6 +257,7 @@ fn an_animation_writes_every_image_per_frame() {
         .flat_map(|n| (0..3).map(move |f| format!("{n}_{f:04}.exr")))
         .collect();
     expected.push("report.json".into());
+    expected.push(".pathdensity-output".into());
     expected.sort();
     assert_eq!(files(&out), expected);
 }
@@ -409,6 +412,7 @@ fn a_rerun_replaces_the_whole_output_folder() {
         "--no-html",
     ]);
     let want = [
+        ".pathdensity-output",
         "filtered.exr",
         "mean.exr",
         "rejected.exr",

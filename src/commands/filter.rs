@@ -333,7 +333,7 @@ fn write_outputs(
                         })
                         .collect::<Result<Vec<(String, Vec<Vec<u8>>, Vec<String>)>>>()
                 },
-                || slice_row.map(|row| plots::slice_svg(records, &h, &run.decisions, row)),
+                || slice_row.map(|row| plots::slice_svg(records, h, &run.decisions, row)),
             )
         });
         let pngs = pngs?;

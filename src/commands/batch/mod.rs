@@ -272,6 +272,8 @@ pub fn merge(out_dir: &Path) -> Result<Outcome> {
         );
     }
     let entries: Vec<Entry> = files.into_iter().flat_map(|f| f.entries).collect();
+    // The summaries replace only files of ours.
+    guard::check_ours(out_dir)?;
     let path = summary::write(out_dir, &entries)?;
     Ok(Outcome {
         entries,

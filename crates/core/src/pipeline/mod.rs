@@ -26,9 +26,9 @@ use methods::Method;
 /// Why a run could not start.
 #[derive(Debug, thiserror::Error)]
 pub enum PipelineError {
-    // The cause is the source, printed once by `{:#}`.
-    #[error("invalid configuration")]
-    Config(#[from] ConfigError),
+    // The field's own message, not a source: `{:#}` would print it twice.
+    #[error("{0}")]
+    Config(ConfigError),
     #[error("cannot start the worker threads: {0}")]
     Threads(#[from] crate::par::ThreadPoolBuildError),
     #[error("no valid sample: every record is non-finite or outside the film (see `info`)")]
@@ -49,6 +49,12 @@ pub enum PipelineError {
     },
     #[error("{method}: {problem}")]
     Method { method: String, problem: String },
+}
+
+impl From<ConfigError> for PipelineError {
+    fn from(e: ConfigError) -> Self {
+        PipelineError::Config(e)
+    }
 }
 
 /// How to run, beyond the configuration: nothing here changes an image.
