@@ -64,7 +64,7 @@ pub struct FilterReport {
     /// Per image name (`mean`, `filtered`), metrics against the reference.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub metrics: BTreeMap<String, ImageMetrics>,
-    /// The image a user should use (`pipeline::RECOMMENDED`); the first row
+    /// The image a user should use (`Method::by_preference`); the first row
     /// of the printed table.
     pub recommended: Option<String>,
     pub reference: Option<String>,
@@ -200,7 +200,7 @@ impl FilterReport {
         // rwmc's counting reliability is at most spp / κ: below κ samples
         // per pixel no cascade is fully trusted and the image darkens.
         let spp = self.header.spp as f64;
-        if self.method_seconds.contains_key("rwmc")
+        if self.method_seconds.contains_key(Method::Rwmc.name())
             && spp > 0.0
             && self.config.rwmc_kappa > spp / 2.0
         {

@@ -1,5 +1,6 @@
-//! The method table: how each [`Method`]'s image is made from a dump, the
-//! filter's decisions and a configuration. `filter`, `sweep`, the
+//! The estimators: how each [`Method`]'s image is made from a dump, the
+//! filter's decisions and a configuration (what each method is, needs
+//! and shares is its row of [`super::methods::TABLE`]). `filter`, `sweep`, the
 //! equal-time comparison and the regression fixtures all ask it.
 //!
 //! Estimators that share work (the per-pixel grouping behind median,
@@ -15,6 +16,7 @@ use std::sync::OnceLock;
 use std::time::Instant;
 
 use super::methods::Method;
+pub use super::methods::Piece;
 use crate::config::FilterConfig;
 use crate::dump::{Header, Record};
 use crate::imagespace;
@@ -93,52 +95,6 @@ impl<'a> Shared<'a> {
         self.interval.get_or_init(|| {
             timed(|| confidence::interval(self.records, self.header, confidence::Z))
         })
-    }
-}
-
-/// Work several images share, made once per configuration.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Piece {
-    /// Median and trimmed ([`robust::robust_images`]).
-    Robust,
-    /// mon and gmon ([`mon::mon_images`]).
-    Mon,
-    /// filtered_energy's image.
-    FilteredEnergy,
-    /// Every pixel's confidence interval.
-    Interval,
-    /// OIDN's image of the mean.
-    OidnMean,
-}
-
-impl Piece {
-    pub const ALL: [Piece; 5] = [
-        Piece::Robust,
-        Piece::Mon,
-        Piece::FilteredEnergy,
-        Piece::Interval,
-        Piece::OidnMean,
-    ];
-
-    /// The shared pieces `method`'s image is made from: what
-    /// [`Estimators::prepare`] makes for it (a test checks that no image
-    /// uses a piece not listed here).
-    pub fn of(method: Method) -> &'static [Piece] {
-        match method {
-            Method::Median | Method::Trimmed => &[Piece::Robust],
-            Method::Mon | Method::Gmon => &[Piece::Mon],
-            Method::FilteredEnergy => &[Piece::FilteredEnergy],
-            Method::FilteredEnergyBilateralCi => &[Piece::FilteredEnergy, Piece::Interval],
-            Method::Oidn => &[Piece::OidnMean],
-            Method::OidnCi => &[Piece::OidnMean, Piece::Interval],
-            Method::Mean
-            | Method::Filtered
-            | Method::Bilateral
-            | Method::Median3
-            | Method::FilteredBilateral
-            | Method::Rwmc
-            | Method::Clamp => &[],
-        }
     }
 }
 

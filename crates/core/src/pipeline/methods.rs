@@ -1,14 +1,16 @@
 //! The images a run can produce: the path-density filter, its baselines
-//! (docs/filter.md, "Methods") and the combinations the paper shows. How
-//! each is made is [`super::estimate`]'s table.
+//! (docs/filter.md, "Methods"), the peer methods and the combinations the
+//! paper shows, each one row of [`TABLE`]: its name, what it needs, the
+//! work it shares, its role in sweeps, whether it is made by default and
+//! whether it can be the recommended image. Everything else about methods
+//! (the list of all, the names, the default set, the sweeps' peers, the
+//! recommended order) is derived from the table. How each image is made is
+//! its estimator, [`super::estimate::Estimators::image`].
 
 use std::str::FromStr;
 
 /// One output image. The names are the file names (`NAME.exr`).
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize, serde::Deserialize,
-)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Method {
     /// All valid samples.
     Mean,
@@ -50,74 +52,346 @@ pub enum Method {
     OidnCi,
 }
 
-impl Method {
-    pub const ALL: [Method; 15] = [
-        Method::Mean,
-        Method::Filtered,
-        Method::Median,
-        Method::Trimmed,
-        Method::Bilateral,
-        Method::Median3,
-        Method::FilteredBilateral,
-        Method::Mon,
-        Method::Gmon,
-        Method::Rwmc,
-        Method::FilteredEnergy,
-        Method::Clamp,
-        Method::FilteredEnergyBilateralCi,
-        Method::Oidn,
-        Method::OidnCi,
+/// What an image is made from besides the samples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Needs {
+    /// The filter's decisions: the image is made after the replay. The
+    /// others are made from the samples alone, beside it.
+    pub decisions: bool,
+    /// The white luminance (docs/filter.md §1): the bilateral filter's ΔE.
+    pub white: bool,
+    /// Intel Open Image Denoise (a build with the `oidn` feature).
+    pub oidn: bool,
+}
+
+const SAMPLES: Needs = Needs {
+    decisions: false,
+    white: false,
+    oidn: false,
+};
+const DECISIONS: Needs = Needs {
+    decisions: true,
+    ..SAMPLES
+};
+const WHITE: Needs = Needs {
+    white: true,
+    ..SAMPLES
+};
+const OIDN: Needs = Needs {
+    oidn: true,
+    ..SAMPLES
+};
+
+/// Work several images share, made once per configuration
+/// ([`super::estimate::Estimators::prepare`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Piece {
+    /// Median and trimmed (`recon::robust::robust_images`).
+    Robust,
+    /// mon and gmon (`recon::mon::mon_images`).
+    Mon,
+    /// filtered_energy's image.
+    FilteredEnergy,
+    /// Every pixel's confidence interval.
+    Interval,
+    /// OIDN's image of the mean.
+    OidnMean,
+}
+
+impl Piece {
+    pub const ALL: [Piece; 5] = [
+        Piece::Robust,
+        Piece::Mon,
+        Piece::FilteredEnergy,
+        Piece::Interval,
+        Piece::OidnMean,
     ];
 
-    pub fn name(self) -> &'static str {
+    /// The shared pieces `method`'s image is made from (a test checks
+    /// that no image uses a piece not listed).
+    pub fn of(method: Method) -> &'static [Piece] {
+        method.row().pieces
+    }
+}
+
+/// The one parameter `sweep` varies for a peer method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Param {
+    /// `mon_groups`.
+    MonGroups,
+    /// `rwmc_kappa`.
+    RwmcKappa,
+    /// `clamp`.
+    Clamp,
+}
+
+impl Param {
+    /// In the order sweeps list them.
+    pub const ALL: [Param; 3] = [Param::MonGroups, Param::RwmcKappa, Param::Clamp];
+
+    /// How a sweep's label names it: `mon groups=11`.
+    pub fn key(self) -> &'static str {
         match self {
-            Method::Mean => "mean",
-            Method::Filtered => "filtered",
-            Method::Median => "median",
-            Method::Trimmed => "trimmed",
-            Method::Bilateral => "bilateral",
-            Method::Median3 => "median3",
-            Method::FilteredBilateral => "filtered_bilateral",
-            Method::Mon => "mon",
-            Method::Gmon => "gmon",
-            Method::Rwmc => "rwmc",
-            Method::FilteredEnergy => "filtered_energy",
-            Method::Clamp => "clamp",
-            Method::FilteredEnergyBilateralCi => "filtered_energy_bilateral_ci",
-            Method::Oidn => "oidn",
-            Method::OidnCi => "oidn_ci",
+            Param::MonGroups => "groups",
+            Param::RwmcKappa => "kappa",
+            Param::Clamp => "C",
         }
     }
+}
 
-    /// Whether the image depends on the filter's decisions. The others
-    /// are made from the samples alone, so a run makes them beside the
-    /// replay.
-    pub fn needs_decisions(self) -> bool {
-        matches!(
-            self,
-            Method::Filtered
-                | Method::FilteredBilateral
-                | Method::FilteredEnergy
-                | Method::FilteredEnergyBilateralCi
-        )
+/// A method's part in `sweep` and `sweep --equal-time`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Role {
+    /// The filter's own images, made at every point of the grid (and at
+    /// every prefix of the equal-time comparison).
+    Grid,
+    /// A baseline, made once at the sweep's base configuration and in
+    /// the equal-time comparison of the whole dump.
+    Baseline,
+    /// A baseline that is also compared at equal time, prefix by prefix.
+    EqualTime,
+    /// A peer method: one image per value of its parameter, and compared
+    /// at equal time.
+    Peer(Param),
+    /// Not in sweeps.
+    Outside,
+}
+
+/// One row of the method table.
+#[derive(Clone, Copy, Debug)]
+pub struct Row {
+    pub method: Method,
+    /// The image's name: its file (`NAME.exr`), its key in reports, its
+    /// spelling in `--methods` and in JSON.
+    pub name: &'static str,
+    pub needs: Needs,
+    /// The work it shares with other images.
+    pub pieces: &'static [Piece],
+    pub role: Role,
+    /// Made unless `--methods` says otherwise (a method that needs OIDN
+    /// only in builds that have it).
+    pub default: bool,
+    /// Its rank as the image a user should use, 0 first: the first of the
+    /// ranked images a run made is its `recommended` image. Chosen by
+    /// measurement (docs/RESULTS.md, "Which image to use").
+    pub recommend: Option<u8>,
+}
+
+/// Every method, in the canonical order: `TABLE[m as usize].method == m`
+/// (checked when the crate compiles).
+pub const TABLE: [Row; 15] = [
+    Row {
+        method: Method::Mean,
+        name: "mean",
+        needs: SAMPLES,
+        pieces: &[],
+        role: Role::Baseline,
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::Filtered,
+        name: "filtered",
+        needs: DECISIONS,
+        pieces: &[],
+        role: Role::Grid,
+        default: true,
+        recommend: Some(3),
+    },
+    Row {
+        method: Method::Median,
+        name: "median",
+        needs: SAMPLES,
+        pieces: &[Piece::Robust],
+        role: Role::Baseline,
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::Trimmed,
+        name: "trimmed",
+        needs: SAMPLES,
+        pieces: &[Piece::Robust],
+        role: Role::Baseline,
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::Bilateral,
+        name: "bilateral",
+        needs: WHITE,
+        pieces: &[],
+        role: Role::Baseline,
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::Median3,
+        name: "median3",
+        needs: SAMPLES,
+        pieces: &[],
+        role: Role::Outside,
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::FilteredBilateral,
+        name: "filtered_bilateral",
+        needs: Needs {
+            white: true,
+            ..DECISIONS
+        },
+        pieces: &[],
+        role: Role::Outside,
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::Mon,
+        name: "mon",
+        needs: SAMPLES,
+        pieces: &[Piece::Mon],
+        role: Role::Peer(Param::MonGroups),
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::Gmon,
+        name: "gmon",
+        needs: SAMPLES,
+        pieces: &[Piece::Mon],
+        role: Role::Peer(Param::MonGroups),
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::Rwmc,
+        name: "rwmc",
+        needs: SAMPLES,
+        pieces: &[],
+        role: Role::Peer(Param::RwmcKappa),
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::FilteredEnergy,
+        name: "filtered_energy",
+        needs: DECISIONS,
+        pieces: &[Piece::FilteredEnergy],
+        role: Role::Grid,
+        default: true,
+        recommend: Some(2),
+    },
+    Row {
+        method: Method::Clamp,
+        name: "clamp",
+        needs: SAMPLES,
+        pieces: &[],
+        role: Role::Peer(Param::Clamp),
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::FilteredEnergyBilateralCi,
+        name: "filtered_energy_bilateral_ci",
+        needs: Needs {
+            white: true,
+            ..DECISIONS
+        },
+        pieces: &[Piece::FilteredEnergy, Piece::Interval],
+        role: Role::Outside,
+        default: true,
+        recommend: Some(1),
+    },
+    Row {
+        method: Method::Oidn,
+        name: "oidn",
+        needs: OIDN,
+        pieces: &[Piece::OidnMean],
+        role: Role::EqualTime,
+        // Asked for by name, or with `denoise`.
+        default: false,
+        recommend: None,
+    },
+    Row {
+        method: Method::OidnCi,
+        name: "oidn_ci",
+        needs: OIDN,
+        pieces: &[Piece::OidnMean, Piece::Interval],
+        role: Role::EqualTime,
+        default: true,
+        recommend: Some(0),
+    },
+];
+
+const _: () = {
+    let mut i = 0;
+    while i < TABLE.len() {
+        assert!(TABLE[i].method as usize == i, "TABLE is in Method's order");
+        i += 1;
+    }
+};
+
+impl Method {
+    /// How many methods there are.
+    pub const COUNT: usize = TABLE.len();
+
+    /// Every method, in the canonical order.
+    pub const ALL: [Method; Method::COUNT] = {
+        let mut all = [Method::Mean; Method::COUNT];
+        let mut i = 0;
+        while i < Method::COUNT {
+            all[i] = TABLE[i].method;
+            i += 1;
+        }
+        all
+    };
+
+    /// This method's row of [`TABLE`].
+    pub const fn row(self) -> &'static Row {
+        &TABLE[self as usize]
     }
 
-    /// Whether the image needs the white luminance (docs/filter.md §1):
-    /// the bilateral filter's ΔE does.
-    pub fn needs_white(self) -> bool {
-        matches!(
-            self,
-            Method::Bilateral | Method::FilteredBilateral | Method::FilteredEnergyBilateralCi
-        )
+    pub const fn name(self) -> &'static str {
+        self.row().name
     }
 
-    /// Whether the image needs OIDN (a build with the `oidn` feature).
-    pub fn needs_oidn(self) -> bool {
-        matches!(self, Method::Oidn | Method::OidnCi)
+    /// Whether the image depends on the filter's decisions.
+    pub const fn needs_decisions(self) -> bool {
+        self.row().needs.decisions
     }
 
-    fn bit(self) -> u16 {
-        1 << self as u16
+    /// Whether the image needs the white luminance.
+    pub const fn needs_white(self) -> bool {
+        self.row().needs.white
+    }
+
+    /// Whether the image needs OIDN.
+    pub const fn needs_oidn(self) -> bool {
+        self.row().needs.oidn
+    }
+
+    /// Whether this build can make the image.
+    pub const fn available(self) -> bool {
+        !self.needs_oidn() || crate::imagespace::oidn::AVAILABLE
+    }
+
+    /// The methods that can be recommended, most preferred first.
+    pub fn by_preference() -> Vec<Method> {
+        let mut ranked: Vec<(u8, Method)> = TABLE
+            .iter()
+            .filter_map(|r| r.recommend.map(|rank| (rank, r.method)))
+            .collect();
+        ranked.sort();
+        ranked.into_iter().map(|(_, m)| m).collect()
+    }
+
+    /// The methods whose role in sweeps is `role` and that this build
+    /// can make, in the canonical order.
+    pub fn with_role(role: impl Fn(Role) -> bool) -> impl Iterator<Item = Method> {
+        Method::ALL
+            .into_iter()
+            .filter(move |m| role(m.row().role) && m.available())
     }
 }
 
@@ -142,7 +416,7 @@ impl std::fmt::Display for Method {
 
 /// A set of methods that always holds mean and filtered, which every run
 /// makes. Iterates in the canonical order of [`Method::ALL`]; in JSON a
-/// list of names.
+/// list of names. As many methods as the table has fit.
 ///
 /// ```
 /// use pathdensity_core::config::{Method, MethodSet};
@@ -151,38 +425,61 @@ impl std::fmt::Display for Method {
 /// assert_eq!(v, [Method::Mean, Method::Filtered, Method::Rwmc]);
 /// ```
 #[derive(Clone, Copy, PartialEq, Eq, Hash)]
-pub struct MethodSet(u16);
+pub struct MethodSet([u64; WORDS]);
+
+/// Words of a [`MethodSet`]: one bit a method.
+const WORDS: usize = Method::COUNT.div_ceil(64);
 
 impl MethodSet {
+    const EMPTY: MethodSet = MethodSet([0; WORDS]);
+
     /// Mean and filtered.
-    pub const CORE: MethodSet = MethodSet(1 << Method::Mean as u16 | 1 << Method::Filtered as u16);
-    pub const ALL: MethodSet = MethodSet((1 << Method::ALL.len()) - 1);
-    /// What a run makes unless told otherwise: every method but plain
-    /// `oidn` (asked for by name, or with `denoise`), and `oidn_ci` only in
-    /// builds that have OIDN, where it is the recommended image.
-    pub const DEFAULT: MethodSet = {
-        let oidn_ci = if crate::imagespace::oidn::AVAILABLE {
-            0
-        } else {
-            1 << Method::OidnCi as u16
-        };
-        MethodSet(MethodSet::ALL.0 & !(1 << Method::Oidn as u16) & !oidn_ci)
+    pub const CORE: MethodSet = MethodSet::EMPTY.with(Method::Mean).with(Method::Filtered);
+
+    /// Every method of the table.
+    pub const ALL: MethodSet = {
+        let mut s = MethodSet::EMPTY;
+        let mut i = 0;
+        while i < Method::COUNT {
+            s = s.with(TABLE[i].method);
+            i += 1;
+        }
+        s
     };
 
-    pub fn contains(self, m: Method) -> bool {
-        self.0 & m.bit() != 0
+    /// What a run makes unless told otherwise: each row's `default`,
+    /// among the methods this build can make.
+    pub const DEFAULT: MethodSet = {
+        let mut s = MethodSet::CORE;
+        let mut i = 0;
+        while i < Method::COUNT {
+            if TABLE[i].default && TABLE[i].method.available() {
+                s = s.with(TABLE[i].method);
+            }
+            i += 1;
+        }
+        s
+    };
+
+    pub const fn contains(self, m: Method) -> bool {
+        let i = m as usize;
+        self.0[i / 64] & (1 << (i % 64)) != 0
     }
 
     /// This set without `m` (mean and filtered stay).
-    pub fn without(self, m: Method) -> MethodSet {
-        MethodSet(self.0 & !m.bit())
-            .with(Method::Mean)
-            .with(Method::Filtered)
+    pub const fn without(self, m: Method) -> MethodSet {
+        let i = m as usize;
+        let mut words = self.0;
+        words[i / 64] &= !(1 << (i % 64));
+        MethodSet(words).with(Method::Mean).with(Method::Filtered)
     }
 
     /// This set and `m`.
-    pub fn with(self, m: Method) -> MethodSet {
-        MethodSet(self.0 | m.bit())
+    pub const fn with(self, m: Method) -> MethodSet {
+        let i = m as usize;
+        let mut words = self.0;
+        words[i / 64] |= 1 << (i % 64);
+        MethodSet(words)
     }
 
     /// The methods in the canonical order.
@@ -212,5 +509,19 @@ impl serde::Serialize for MethodSet {
 impl<'de> serde::Deserialize<'de> for MethodSet {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<MethodSet, D::Error> {
         Ok(Vec::<Method>::deserialize(d)?.into_iter().collect())
+    }
+}
+
+// A method is its name in JSON, as on the command line.
+impl serde::Serialize for Method {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Method {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Method, D::Error> {
+        let name = String::deserialize(d)?;
+        name.parse().map_err(serde::de::Error::custom)
     }
 }

@@ -94,22 +94,13 @@ pub fn image_name(method: Method, denoised: bool) -> String {
     }
 }
 
-/// The image a user should use, in order of preference: the first of
-/// these a run made is its `recommended` image. Chosen by measurement
-/// (docs/RESULTS.md, "Which image to use").
-pub const RECOMMENDED: [(Method, bool); 4] = [
-    (Method::OidnCi, false),
-    (Method::FilteredEnergyBilateralCi, false),
-    (Method::FilteredEnergy, false),
-    (Method::Filtered, false),
-];
-
-/// The name of the recommended image among `images`.
+/// The name of the recommended image among `images`: the first a run
+/// made in the table's order of preference ([`Method::by_preference`]).
 pub fn recommended(images: &[MethodImage]) -> Option<String> {
-    RECOMMENDED
-        .iter()
-        .find(|&&(m, d)| images.iter().any(|e| e.method == m && e.denoised == d))
-        .map(|&(m, d)| image_name(m, d))
+    Method::by_preference()
+        .into_iter()
+        .find(|&m| images.iter().any(|e| e.method == m && !e.denoised))
+        .map(|m| image_name(m, false))
 }
 
 /// The images a configuration makes, in order: every selected method, and

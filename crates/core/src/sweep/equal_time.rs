@@ -13,6 +13,7 @@ use crate::dump::{DumpReader, Order};
 use crate::io::exr;
 use crate::metrics::{self, Metrics};
 use crate::pipeline::estimate::{Estimators, Shared};
+use crate::pipeline::methods::Role;
 use crate::pipeline::{self, thread_pool};
 use crate::progress::{Progress, Silent};
 use crate::recon::Image;
@@ -96,18 +97,11 @@ pub fn equal_time(
         let core = pipeline::reconstruct(recs, &ph, &config, |_| true, 0.0);
         let shared = Shared::new(recs, &ph);
         let est = Estimators::new(&shared, &config, white, &core);
-        let mut peers = vec![
-            (Method::Mon, format!("mon groups={}", config.mon_groups)),
-            (Method::Gmon, format!("gmon groups={}", config.mon_groups)),
-            (Method::Rwmc, format!("rwmc kappa={}", config.rwmc_kappa)),
-            (Method::Clamp, format!("clamp C={}", config.clamp)),
-        ];
-        if crate::imagespace::oidn::AVAILABLE {
-            peers.push((Method::Oidn, "oidn".into()));
-            peers.push((Method::OidnCi, "oidn_ci".into()));
-        }
-        let peers = peers
-            .into_iter()
+        let peers = Method::with_role(|r| matches!(r, Role::Peer(_) | Role::EqualTime))
+            .map(|m| match m.row().role {
+                Role::Peer(param) => (m, super::peer_label(m, param, &config)),
+                _ => (m, m.name().to_string()),
+            })
             .map(|(m, label)| match est.image(m) {
                 Ok((img, _)) => Ok((label, compare(&img))),
                 Err(e) => Err(anyhow::anyhow!("{label}: {e}")),

@@ -16,6 +16,7 @@ use crate::dump::{DumpReader, Header, Record};
 use crate::io::exr;
 use crate::metrics::{self, Metrics};
 use crate::pipeline::estimate::{Estimators, Shared};
+use crate::pipeline::methods::{Param, Role};
 use crate::pipeline::{self, PipelineError, thread_pool};
 use crate::progress::Progress;
 use crate::recon::{Image, energy};
@@ -51,6 +52,28 @@ struct Peers {
     mon: Vec<FilterConfig>,
     rwmc: Vec<FilterConfig>,
     clamp: Vec<FilterConfig>,
+}
+
+impl Peers {
+    /// The configurations that vary `param`.
+    fn of(&self, param: Param) -> &[FilterConfig] {
+        match param {
+            Param::MonGroups => &self.mon,
+            Param::RwmcKappa => &self.rwmc,
+            Param::Clamp => &self.clamp,
+        }
+    }
+}
+
+/// A peer method's label in a sweep: its name and its parameter's value
+/// in `c` (`mon groups=11`).
+pub(crate) fn peer_label(method: Method, param: Param, c: &FilterConfig) -> String {
+    let value = match param {
+        Param::MonGroups => c.mon_groups.to_string(),
+        Param::RwmcKappa => c.rwmc_kappa.to_string(),
+        Param::Clamp => c.clamp.to_string(),
+    };
+    format!("{method} {}={value}", param.key())
 }
 
 impl SweepOptions {
@@ -233,30 +256,16 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
             });
             Ok(())
         };
-        let oidn = [Method::Oidn, Method::OidnCi]
-            .into_iter()
-            .filter(|_| crate::imagespace::oidn::AVAILABLE);
-        for m in [
-            Method::Mean,
-            Method::Median,
-            Method::Trimmed,
-            Method::Bilateral,
-        ]
-        .into_iter()
-        .chain(oidn)
-        {
+        for m in Method::with_role(|r| matches!(r, Role::Baseline | Role::EqualTime)) {
             add(base, m, m.name().to_string())?;
         }
-        for c in &peers.mon {
-            for m in [Method::Mon, Method::Gmon] {
-                add(c, m, format!("{m} groups={}", c.mon_groups))?;
+        // Each value of a parameter, then every method that shares it.
+        for param in Param::ALL {
+            for c in peers.of(param) {
+                for m in Method::with_role(|r| r == Role::Peer(param)) {
+                    add(c, m, peer_label(m, param, c))?;
+                }
             }
-        }
-        for c in &peers.rwmc {
-            add(c, Method::Rwmc, format!("rwmc kappa={}", c.rwmc_kappa))?;
-        }
-        for c in &peers.clamp {
-            add(c, Method::Clamp, format!("clamp C={}", c.clamp))?;
         }
         Ok::<_, anyhow::Error>((baselines, valid))
     })?;
