@@ -1,4 +1,4 @@
-//! Numerical stability at the extremes (issue 5): absurd radiance, every
+//! Numerical stability at the extremes: absurd radiance, every
 //! non-finite field, coordinates on and beyond the edges, extreme k and σ,
 //! tiny and empty films, a million identical samples, many frames. Nothing
 //! panics, every output pixel is finite, the counts are right, and the

@@ -1,7 +1,7 @@
 //! The fuzz target's corpus and any crash reproducers, replayed on stable
 //! as regression tests: parsing never panics, a parsed header is valid, and
 //! every valid record falls inside the film. (`cargo +nightly fuzz run dump`
-//! runs the fuzzer itself; see README.)
+//! runs the fuzzer itself; see docs/ARCHITECTURE.md.)
 
 use std::path::Path;
 

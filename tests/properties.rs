@@ -162,7 +162,7 @@ proptest! {
     /// Scaling every radiance by 2ⁿ together with Y_w leaves every Lab
     /// coordinate, hence every decision, unchanged. Powers of two are exact
     /// in floating point; another constant moves coordinates by an ulp, which
-    /// can flip a sample whose σ is within rounding of 1 (README, "Exposure").
+    /// can flip a sample whose σ is within rounding of 1 (docs/filter.md, the white).
     #[test]
     fn scaling_radiance_with_the_white_keeps_every_decision(
         p in dumps(any::<bool>()),

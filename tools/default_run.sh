@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The run users make against the bare replay and the render (issue 23;
+# The run users make against the bare replay and the render (
 # docs/BENCHMARKS.md, "The default run"): on a Mitsuba 3 dump of
 # glossy-highlight.xml at 128 × 128 × 64 spp (1,048,576 samples), for each
 # k, RUNS interleaved rounds of

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Exposure invariance of --white auto (issue 6): for every scene, render a
+# Exposure invariance of --white auto: for every scene, render a
 # 64 × 64, 16-spp dump, scale its radiance by 0.1 and by 10 (tools/pds.py),
 # filter all three with the fixed default white (1) and with --white auto,
 # and count the decisions that differ from the unscaled dump's.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The colour space against k, σ_color, σ_image and the white (issue 21), on
+# The colour space against k, σ_color, σ_image and the white, on
 # every scene of our renderer and the Mitsuba exporter's, at SPPS (default
 # "16 64") spp, SIZE² (default 128) pixels. Reuses the references of
 # tools/oidn_table.sh in OUT (default out/oidn; run that first). Writes

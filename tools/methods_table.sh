@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Every method on every scene (issue 7): each still scene rendered at
+# Every method on every scene: each still scene rendered at
 # SIZE² (default 128) and SPPS (default "16 64") spp with a REF_SPP (default
 # 1024) reference, the moving scene at 4 frames; `filter` with every method.
 # Writes OUT/methods.csv (default out/methods) and prints, per scene and

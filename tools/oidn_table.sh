@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# OIDN and clamping against the filter (issue 20), on every scene of our
+# OIDN and clamping against the filter, on every scene of our
 # renderer and the Mitsuba exporter's scenes, at SPPS (default "16 64") spp,
 # SIZE² (default 128) pixels: mean, filtered, filtered_energy, clamp at each
 # of CLAMPS (default "3 10 30"), oidn, the two recommended images

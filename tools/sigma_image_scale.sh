@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Should σ_image scale with the film? (issue 21) The same scenes at SIZES
+# Should σ_image scale with the film? The same scenes at SIZES
 # (default "64 128 256") pixels a side, 64 spp, each swept over σ_image
 # 1.5, 3, 6 px with the other defaults; "scaled" means σ_image = 3 px at
 # 128 and in proportion (1.5 at 64, 6 at 256). References: 1024 spp (512 at

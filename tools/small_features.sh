@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Small features that look like outliers (issue 6): the two-lights scene's
+# Small features that look like outliers: the two-lights scene's
 # small blue light seen directly, at several resolutions (RES, default
 # 32 64 128 256) and sample counts (SPPS, default 4 16 64), filtered at
 # k = 3, 10, 50 (KS) with the paper's σ. Reports, per run, linear RMS,
