@@ -116,8 +116,8 @@ pub fn render(report: &FilterReport, assets: &Assets) -> String {
     for (name, frames) in &assets.images {
         let caption = match report.metrics.get(name) {
             Some(m) => format!(
-                "{name}: RMS {:.4}, RMS display {:.4}",
-                m.pooled.rms, m.pooled.rms_display
+                "{name}: RMS {:.4}, RMS display {:.4}, FLIP {:.4}",
+                m.pooled.rms, m.pooled.rms_display, m.pooled.flip
             ),
             None if name == "rejected" => format!(
                 "rejected: mean − filtered, {:.2}% of the mean's energy",
@@ -215,24 +215,26 @@ fn metric_table(report: &FilterReport) -> String {
     }
     let best = report.best_rms();
     let mut t = String::from(
-        "<table><thead><tr><th>method</th><th>RMS</th><th>RMS display</th><th>relMSE</th><th>energy</th><th>energy R / G / B</th><th>seconds</th></tr></thead><tbody>\n",
+        "<table><thead><tr><th>method</th><th>RMS</th><th>RMS display</th><th>relMSE</th><th>energy</th><th>energy R / G / B</th><th>FLIP</th><th>HDR-FLIP</th><th>seconds</th></tr></thead><tbody>\n",
     );
     for (name, seconds, m) in rows {
         let cells = match m {
             Some(m) => {
                 let p = &m.pooled;
                 format!(
-                    "<td>{:.5}</td><td>{:.5}</td><td>{:.5}</td><td>{:.4}</td><td>{:.3} / {:.3} / {:.3}</td>",
+                    "<td>{:.5}</td><td>{:.5}</td><td>{:.5}</td><td>{:.4}</td><td>{:.3} / {:.3} / {:.3}</td><td>{:.4}</td><td>{:.4}</td>",
                     p.rms,
                     p.rms_display,
                     p.rel_mse,
                     p.energy_ratio,
                     p.energy_ratio_rgb[0],
                     p.energy_ratio_rgb[1],
-                    p.energy_ratio_rgb[2]
+                    p.energy_ratio_rgb[2],
+                    p.flip,
+                    p.hdr_flip
                 )
             }
-            None => "<td colspan=\"5\">no reference</td>".into(),
+            None => "<td colspan=\"7\">no reference</td>".into(),
         };
         let class = if best.as_deref() == Some(name.as_str()) {
             " class=\"best\""

@@ -152,8 +152,8 @@ impl FilterReport {
         );
         let best = self.best_rms();
         s += &format!(
-            "  {:<20}{:>12}{:>14}{:>12}{:>10}{:>10}\n",
-            "image", "RMS", "RMS display", "relMSE", "energy", "seconds"
+            "  {:<20}{:>12}{:>14}{:>12}{:>10}{:>9}{:>10}{:>10}\n",
+            "image", "RMS", "RMS display", "relMSE", "energy", "FLIP", "HDR-FLIP", "seconds"
         );
         for (name, seconds, m) in self.method_rows() {
             let mark = if best.as_deref() == Some(name.as_str()) {
@@ -170,11 +170,18 @@ impl FilterReport {
                 Some(m) => {
                     let m = &m.pooled;
                     s += &format!(
-                        "{mark} {:<20}{:>12.6}{:>14.6}{:>12.6}{:>10.4}{:>10.3}\n",
-                        name, m.rms, m.rms_display, m.rel_mse, m.energy_ratio, seconds
+                        "{mark} {:<20}{:>12.6}{:>14.6}{:>12.6}{:>10.4}{:>9.4}{:>10.4}{:>10.3}\n",
+                        name,
+                        m.rms,
+                        m.rms_display,
+                        m.rel_mse,
+                        m.energy_ratio,
+                        m.flip,
+                        m.hdr_flip,
+                        seconds
                     );
                 }
-                None => s += &format!("  {:<20}{:>58.3}\n", name, seconds),
+                None => s += &format!("  {:<20}{:>77.3}\n", name, seconds),
             }
         }
         if best.is_some() {

@@ -36,6 +36,8 @@ struct CsvRow<'a> {
     rms_display: Option<f64>,
     rel_mse: Option<f64>,
     energy_ratio: Option<f64>,
+    flip: Option<f64>,
+    hdr_flip: Option<f64>,
 }
 
 impl CsvRow<'_> {
@@ -44,6 +46,8 @@ impl CsvRow<'_> {
         self.rms_display = m.map(|m| m.rms_display);
         self.rel_mse = m.map(|m| m.rel_mse);
         self.energy_ratio = m.map(|m| m.energy_ratio);
+        self.flip = m.map(|m| m.flip);
+        self.hdr_flip = m.map(|m| m.hdr_flip);
         self
     }
 }
@@ -78,6 +82,8 @@ pub fn csv(s: &Sweep) -> String {
                 rms_display: None,
                 rel_mse: None,
                 energy_ratio: None,
+                flip: None,
+                hdr_flip: None,
             }
             .metrics(m)
         });
@@ -100,6 +106,8 @@ pub fn csv(s: &Sweep) -> String {
             rms_display: None,
             rel_mse: None,
             energy_ratio: None,
+            flip: None,
+            hdr_flip: None,
         }
         .metrics(Some(&b.metrics))
     });

@@ -176,16 +176,20 @@ fn csv(dumps: &[(&Entry, Option<ReportDigest>)], images: &[String]) -> Result<Ve
         .any(|(_, r)| r.as_ref().is_some_and(|r| r.header.frames > 1));
     let mut header: Vec<String> = FIXED.iter().map(|s| s.to_string()).collect();
     for i in images {
-        header.extend(["rms", "rms_display", "energy"].map(|m| format!("{i}.{m}")));
+        header.extend(
+            ["rms", "rms_display", "energy", "flip", "hdr_flip"].map(|m| format!("{i}.{m}")),
+        );
         if animated {
             header.extend(["temporal_rms", "temporal_rms_display"].map(|m| format!("{i}.{m}")));
         }
     }
     let mut w = csv::Writer::from_writer(Vec::new());
     w.write_record(&header)?;
-    let metric_cells = |m: Option<&Metrics>| -> [String; 3] {
+    let metric_cells = |m: Option<&Metrics>| -> [String; 5] {
         match m {
-            Some(m) => [m.rms, m.rms_display, m.energy_ratio].map(|v| v.to_string()),
+            Some(m) => {
+                [m.rms, m.rms_display, m.energy_ratio, m.flip, m.hdr_flip].map(|v| v.to_string())
+            }
             None => Default::default(),
         }
     };

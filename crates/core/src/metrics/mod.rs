@@ -1,5 +1,7 @@
 //! Error metrics against a reference image (docs/filter.md §4).
 
+pub mod flip;
+
 use crate::joint::lab::luminance;
 use crate::recon::{Image, stored};
 
@@ -17,6 +19,13 @@ pub struct Metrics {
     /// Σ I_c / Σ R_c per channel: shows a colour shift (the paper's
     /// Figure 4: the trimmed mean loses the blue light).
     pub energy_ratio_rgb: [f64; 3],
+    /// Mean ꟻLIP of the display values ([`flip::ldr`]; lower is better),
+    /// the mean over frames for an animation.
+    #[serde(default)]
+    pub flip: f64,
+    /// Mean HDR-ꟻLIP of the linear values ([`flip::hdr`]).
+    #[serde(default)]
+    pub hdr_flip: f64,
 }
 
 /// The sRGB transfer curve for a display value in [0, 1].
@@ -62,7 +71,34 @@ pub fn compare_pixels(img: &[[f64; 3]], reference: &[[f64; 3]], exposure: f64) -
         rel_mse: rel / n,
         energy_ratio: yi / yr,
         energy_ratio_rgb: [0, 1, 2].map(|c| ci[c] / cr[c]),
+        flip: 0.0,
+        hdr_flip: 0.0,
     }
+}
+
+/// Mean ꟻLIP and HDR-ꟻLIP of one frame of `img` against `reference`'s: on
+/// the display values (clamp(exposure · v, 0, 1), what a viewer shows and
+/// the sRGB encoding ꟻLIP undoes) and on the linear values. As written
+/// (f32), like every metric.
+pub fn flip_pair(img: &Image, reference: &Image, frame: usize, exposure: f64) -> (f64, f64) {
+    let (w, h) = (img.width, img.height);
+    let linear = |px: &[[f64; 3]], written: bool| -> Vec<[f32; 3]> {
+        px.iter()
+            .map(|p| p.map(|v| if written { stored(v) } else { v as f32 }))
+            .collect()
+    };
+    let (i, r) = (
+        linear(img.frame(frame), true),
+        linear(reference.frame(frame), false),
+    );
+    let shown = |px: &[[f32; 3]]| -> Vec<[f32; 3]> {
+        px.iter()
+            .map(|p| p.map(|v| (v as f64 * exposure).clamp(0.0, 1.0) as f32))
+            .collect()
+    };
+    let ldr = flip::mean(&flip::ldr(&shown(&r), &shown(&i), w, h, flip::PPD));
+    let hdr = flip::mean(&flip::hdr(&r, &i, w, h, flip::PPD));
+    (ldr, hdr)
 }
 
 /// Pooled metrics over all frames, and per frame; for an animation, its
@@ -122,10 +158,20 @@ pub fn temporal(img: &Image, reference: &Image, exposure: f64) -> Option<Tempora
 }
 
 pub fn compare(img: &Image, reference: &Image, exposure: f64) -> ImageMetrics {
-    let pooled = compare_pixels(&img.data, &reference.data, exposure);
+    let mut pooled = compare_pixels(&img.data, &reference.data, exposure);
+    let flips: Vec<(f64, f64)> = (0..img.frames)
+        .map(|f| flip_pair(img, reference, f, exposure))
+        .collect();
+    let n = flips.len().max(1) as f64;
+    pooled.flip = flips.iter().map(|f| f.0).sum::<f64>() / n;
+    pooled.hdr_flip = flips.iter().map(|f| f.1).sum::<f64>() / n;
     let per_frame = if img.frames > 1 {
         (0..img.frames)
-            .map(|f| compare_pixels(img.frame(f), reference.frame(f), exposure))
+            .map(|f| Metrics {
+                flip: flips[f].0,
+                hdr_flip: flips[f].1,
+                ..compare_pixels(img.frame(f), reference.frame(f), exposure)
+            })
             .collect()
     } else {
         Vec::new()
