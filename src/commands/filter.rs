@@ -182,13 +182,7 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
         staging.path(),
         &clock,
     )
-    .map_err(|e| {
-        let staged = staging.path().display().to_string();
-        anyhow::anyhow!(
-            "{}",
-            format!("{e:#}").replace(&staged, &opts.out_dir.display().to_string())
-        )
-    })?;
+    .map_err(|e| anyhow::anyhow!("{}", staging.in_dest(&format!("{e:#}"))))?;
     // The hash and the slice plot read the records too.
     dump.intact()?;
     staging.commit()?;

@@ -1,6 +1,8 @@
 //! `pathdensity sweep`: the filter over a grid of parameters, written as
 //! `sweep.csv`, `sweep.json` and two plots, each as SVG and PNG.
 
+use std::path::Path;
+
 use anyhow::{Context, Result, anyhow, bail};
 
 use crate::dump::DumpReader;
@@ -31,25 +33,9 @@ pub fn sweep(o: &SweepOptions) -> Result<Sweep> {
 pub fn sweep_with_progress(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
     let staging = Staging::create(&o.out_dir, &inputs(o))?;
     let s = sweep::run(o, progress).with_context(|| o.dump.display().to_string())?;
-    let dir = staging.path();
-    atomic::write_bytes(&dir.join("sweep.csv"), report::sweep::csv(&s).as_bytes())?;
-    let json = serde_json::to_vec_pretty(&s).expect("a sweep serialises");
-    atomic::write_bytes(&dir.join("sweep.json"), &json)?;
-    let plot = |r: Result<Vec<u8>, String>| r.map_err(|e| anyhow!("cannot draw a plot: {e}"));
-    let svg = |r: Result<String, String>| plot(r.map(String::into_bytes));
-    atomic::write_bytes(
-        &dir.join("rms_vs_time.svg"),
-        &svg(report::sweep::plot_time(&s))?,
-    )?;
-    atomic::write_bytes(
-        &dir.join("rms_vs_time.png"),
-        &plot(report::sweep::plot_time_png(&s))?,
-    )?;
-    atomic::write_bytes(&dir.join("rms_vs_k.svg"), &svg(report::sweep::plot_k(&s))?)?;
-    atomic::write_bytes(
-        &dir.join("rms_vs_k.png"),
-        &plot(report::sweep::plot_k_png(&s))?,
-    )?;
+    // Errors name OUT's files, not the hidden staging folder's.
+    write_sweep(&s, staging.path())
+        .map_err(|e| anyhow!("{}", staging.in_dest(&format!("{e:#}"))))?;
     staging.commit()?;
     if s.rows.iter().all(|r| r.failure.is_some()) {
         bail!(
@@ -58,6 +44,29 @@ pub fn sweep_with_progress(o: &SweepOptions, progress: &dyn Progress) -> Result<
         );
     }
     Ok(s)
+}
+
+/// Writes the sweep's tables and plots into `dir`.
+fn write_sweep(s: &Sweep, dir: &Path) -> Result<()> {
+    atomic::write_bytes(&dir.join("sweep.csv"), report::sweep::csv(s).as_bytes())?;
+    let json = serde_json::to_vec_pretty(s).expect("a sweep serialises");
+    atomic::write_bytes(&dir.join("sweep.json"), &json)?;
+    let plot = |r: Result<Vec<u8>, String>| r.map_err(|e| anyhow!("cannot draw a plot: {e}"));
+    let svg = |r: Result<String, String>| plot(r.map(String::into_bytes));
+    atomic::write_bytes(
+        &dir.join("rms_vs_time.svg"),
+        &svg(report::sweep::plot_time(s))?,
+    )?;
+    atomic::write_bytes(
+        &dir.join("rms_vs_time.png"),
+        &plot(report::sweep::plot_time_png(s))?,
+    )?;
+    atomic::write_bytes(&dir.join("rms_vs_k.svg"), &svg(report::sweep::plot_k(s))?)?;
+    atomic::write_bytes(
+        &dir.join("rms_vs_k.png"),
+        &plot(report::sweep::plot_k_png(s))?,
+    )?;
+    Ok(())
 }
 
 /// The printed table: one line per configuration, then the baselines.

@@ -202,6 +202,14 @@ impl Staging {
         &self.dest
     }
 
+    /// `message` (an error while writing into the staging folder) with the
+    /// staging folder's hidden name replaced by the destination's: what the
+    /// user asked for and will look at.
+    pub fn in_dest(&self, message: &str) -> String {
+        let staged = self.path().display().to_string();
+        message.replace(&staged, &self.dest.display().to_string())
+    }
+
     /// Marks the staging folder as ours ([`guard::MARKER`], listing what
     /// it holds), swaps it in for the destination and removes the previous
     /// run's folder.
