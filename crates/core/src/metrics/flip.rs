@@ -144,22 +144,38 @@ fn normalised_by_sign(mut k: Vec<f32>) -> Vec<f32> {
 /// A plane of `w × h` values filtered by `kx` along rows, then `ky` along
 /// columns, the edges clamped.
 fn separable(plane: &[f32], w: usize, h: usize, kx: &[f32], ky: &[f32]) -> Vec<f32> {
-    let (rx, ry) = (kx.len() / 2, ky.len() / 2);
-    let mut rows = vec![0.0f32; w * h];
-    rows.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
-        let src = &plane[y * w..(y + 1) * w];
-        for (x, o) in out.iter_mut().enumerate() {
-            *o = kx
-                .iter()
-                .enumerate()
-                .map(|(i, k)| k * src[(x + i).saturating_sub(rx).min(w - 1)])
-                .sum();
-        }
-    });
+    vertical(&horizontal(plane, w, kx), w, h, ky)
+}
+
+fn horizontal(plane: &[f32], w: usize, k: &[f32]) -> Vec<f32> {
+    let r = k.len() / 2;
+    let mut out = vec![0.0f32; plane.len()];
+    out.par_chunks_mut(w)
+        .zip(plane.par_chunks(w))
+        .for_each_init(Vec::new, |padded, (out, src)| {
+            // The row with its edge values repeated r times each side, so
+            // that every output is one contiguous dot product.
+            padded.clear();
+            padded.extend(std::iter::repeat_n(src[0], r));
+            padded.extend_from_slice(src);
+            padded.extend(std::iter::repeat_n(src[w - 1], r));
+            for (x, o) in out.iter_mut().enumerate() {
+                *o = padded[x..x + k.len()]
+                    .iter()
+                    .zip(k)
+                    .map(|(v, k)| v * k)
+                    .sum();
+            }
+        });
+    out
+}
+
+fn vertical(plane: &[f32], w: usize, h: usize, k: &[f32]) -> Vec<f32> {
+    let r = k.len() / 2;
     let mut out = vec![0.0f32; w * h];
     out.par_chunks_mut(w).enumerate().for_each(|(y, o)| {
-        for (i, k) in ky.iter().enumerate() {
-            let row = &rows[(y + i).saturating_sub(ry).min(h - 1) * w..][..w];
+        for (i, k) in k.iter().enumerate() {
+            let row = &plane[(y + i).saturating_sub(r).min(h - 1) * w..][..w];
             for (o, v) in o.iter_mut().zip(row) {
                 *o += k * v;
             }
@@ -239,9 +255,11 @@ fn seen(img: &[Rgb], w: usize, h: usize, k: &Kernels) -> Seen {
         .collect();
     // Features of the unfiltered luminance, normalised to [0, 1].
     let lum: Vec<f32> = y.iter().map(|v| (v + 16.0) / 116.0).collect();
+    // The Gaussian along rows is shared by both derivatives along columns.
+    let smooth = horizontal(&lum, w, &k.g);
     let magnitude = |d: &[f32]| {
-        let a = separable(&lum, w, h, d, &k.g);
-        let b = separable(&lum, w, h, &k.g, d);
+        let a = vertical(&horizontal(&lum, w, d), w, h, &k.g);
+        let b = vertical(&smooth, w, h, d);
         a.iter()
             .zip(&b)
             .map(|(a, b)| (a * a + b * b).sqrt())
@@ -264,14 +282,28 @@ fn cmax() -> f32 {
 /// RGB (clamped to [0, 1]: a display's values), seen at `ppd` pixels per
 /// degree.
 pub fn ldr(reference: &[Rgb], test: &[Rgb], w: usize, h: usize, ppd: f32) -> Vec<f32> {
+    ldr_many(reference, &[test], w, h, ppd).remove(0)
+}
+
+/// [`ldr`] of each of `tests` against one reference, which is seen once.
+pub fn ldr_many(
+    reference: &[Rgb],
+    tests: &[&[Rgb]],
+    w: usize,
+    h: usize,
+    ppd: f32,
+) -> Vec<Vec<f32>> {
     assert_eq!(reference.len(), w * h);
-    assert_eq!(test.len(), w * h);
+    assert!(tests.iter().all(|t| t.len() == w * h));
     if w == 0 || h == 0 {
-        return Vec::new();
+        return vec![Vec::new(); tests.len()];
     }
     let k = Kernels::new(ppd);
-    let (r, t) = crate::par::join(|| seen(reference, w, h, &k), || seen(test, w, h, &k));
-    error(&r, &t)
+    let r = seen(reference, w, h, &k);
+    tests
+        .iter()
+        .map(|t| error(&r, &seen(t, w, h, &k)))
+        .collect()
 }
 
 /// Per pixel ΔE_c^(1 − ΔE_f) of two seen images.
@@ -343,17 +375,33 @@ pub fn exposures(reference: &[Rgb]) -> Vec<f32> {
 /// the largest ꟻLIP over [`exposures`], each image scaled by 2^c and tone
 /// mapped by ACES.
 pub fn hdr(reference: &[Rgb], test: &[Rgb], w: usize, h: usize, ppd: f32) -> Vec<f32> {
+    hdr_many(reference, &[test], w, h, ppd).remove(0)
+}
+
+/// [`hdr`] of each of `tests` against one reference, which is seen once
+/// an exposure.
+pub fn hdr_many(
+    reference: &[Rgb],
+    tests: &[&[Rgb]],
+    w: usize,
+    h: usize,
+    ppd: f32,
+) -> Vec<Vec<f32>> {
     let tone = |img: &[Rgb], c: f32| -> Vec<Rgb> {
         let s = c.exp2();
         img.iter()
             .map(|p| p.map(|v| aces(v * s).clamp(0.0, 1.0)))
             .collect()
     };
-    let mut out = vec![0.0f32; w * h];
+    let mut out = vec![vec![0.0f32; w * h]; tests.len()];
     for c in exposures(reference) {
-        let e = ldr(&tone(reference, c), &tone(test, c), w, h, ppd);
-        for (o, e) in out.iter_mut().zip(e) {
-            *o = o.max(e);
+        let toned: Vec<Vec<Rgb>> = tests.iter().map(|t| tone(t, c)).collect();
+        let toned: Vec<&[Rgb]> = toned.iter().map(Vec::as_slice).collect();
+        let errors = ldr_many(&tone(reference, c), &toned, w, h, ppd);
+        for (o, e) in out.iter_mut().zip(errors) {
+            for (o, e) in o.iter_mut().zip(e) {
+                *o = o.max(e);
+            }
         }
     }
     out

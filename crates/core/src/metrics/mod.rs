@@ -76,29 +76,46 @@ pub fn compare_pixels(img: &[[f64; 3]], reference: &[[f64; 3]], exposure: f64) -
     }
 }
 
-/// Mean ꟻLIP and HDR-ꟻLIP of one frame of `img` against `reference`'s: on
-/// the display values (clamp(exposure · v, 0, 1), what a viewer shows and
-/// the sRGB encoding ꟻLIP undoes) and on the linear values. As written
-/// (f32), like every metric.
-pub fn flip_pair(img: &Image, reference: &Image, frame: usize, exposure: f64) -> (f64, f64) {
-    let (w, h) = (img.width, img.height);
-    let linear = |px: &[[f64; 3]], written: bool| -> Vec<[f32; 3]> {
-        px.iter()
-            .map(|p| p.map(|v| if written { stored(v) } else { v as f32 }))
-            .collect()
-    };
-    let (i, r) = (
-        linear(img.frame(frame), true),
-        linear(reference.frame(frame), false),
-    );
+/// Mean ꟻLIP and HDR-ꟻLIP of one frame of each of `images` against
+/// `reference`'s: on the display values (clamp(exposure · v, 0, 1), what a
+/// viewer shows and the sRGB encoding ꟻLIP undoes) and on the linear
+/// values. The images as written (f32), like every metric; the reference
+/// is seen once for all of them.
+pub fn flip_means(
+    images: &[&Image],
+    reference: &Image,
+    frame: usize,
+    exposure: f64,
+) -> Vec<(f64, f64)> {
+    let (w, h) = (reference.width, reference.height);
+    let written = |px: &[[f64; 3]]| -> Vec<[f32; 3]> { px.iter().map(|p| p.map(stored)).collect() };
     let shown = |px: &[[f32; 3]]| -> Vec<[f32; 3]> {
         px.iter()
             .map(|p| p.map(|v| (v as f64 * exposure).clamp(0.0, 1.0) as f32))
             .collect()
     };
-    let ldr = flip::mean(&flip::ldr(&shown(&r), &shown(&i), w, h, flip::PPD));
-    let hdr = flip::mean(&flip::hdr(&r, &i, w, h, flip::PPD));
-    (ldr, hdr)
+    let r: Vec<[f32; 3]> = reference
+        .frame(frame)
+        .iter()
+        .map(|p| p.map(|v| v as f32))
+        .collect();
+    let linear: Vec<Vec<[f32; 3]>> = images.iter().map(|i| written(i.frame(frame))).collect();
+    let displayed: Vec<Vec<[f32; 3]>> = linear.iter().map(|i| shown(i)).collect();
+    let ldr = flip::ldr_many(&shown(&r), &slices(&displayed), w, h, flip::PPD);
+    let hdr = flip::hdr_many(&r, &slices(&linear), w, h, flip::PPD);
+    ldr.iter()
+        .zip(&hdr)
+        .map(|(l, h)| (flip::mean(l), flip::mean(h)))
+        .collect()
+}
+
+fn slices(v: &[Vec<[f32; 3]>]) -> Vec<&[[f32; 3]]> {
+    v.iter().map(Vec::as_slice).collect()
+}
+
+/// One image's [`flip_means`].
+pub fn flip_pair(img: &Image, reference: &Image, frame: usize, exposure: f64) -> (f64, f64) {
+    flip_means(&[img], reference, frame, exposure)[0]
 }
 
 /// Pooled metrics over all frames, and per frame; for an animation, its
@@ -158,29 +175,41 @@ pub fn temporal(img: &Image, reference: &Image, exposure: f64) -> Option<Tempora
 }
 
 pub fn compare(img: &Image, reference: &Image, exposure: f64) -> ImageMetrics {
-    let mut pooled = compare_pixels(&img.data, &reference.data, exposure);
-    let flips: Vec<(f64, f64)> = (0..img.frames)
-        .map(|f| flip_pair(img, reference, f, exposure))
+    compare_all(&[img], reference, exposure).remove(0)
+}
+
+/// [`compare`] of each of `images`, the reference seen by ꟻLIP once.
+pub fn compare_all(images: &[&Image], reference: &Image, exposure: f64) -> Vec<ImageMetrics> {
+    // flips[frame][image]
+    let flips: Vec<Vec<(f64, f64)>> = (0..reference.frames)
+        .map(|f| flip_means(images, reference, f, exposure))
         .collect();
-    let n = flips.len().max(1) as f64;
-    pooled.flip = flips.iter().map(|f| f.0).sum::<f64>() / n;
-    pooled.hdr_flip = flips.iter().map(|f| f.1).sum::<f64>() / n;
-    let per_frame = if img.frames > 1 {
-        (0..img.frames)
-            .map(|f| Metrics {
-                flip: flips[f].0,
-                hdr_flip: flips[f].1,
-                ..compare_pixels(img.frame(f), reference.frame(f), exposure)
-            })
-            .collect()
-    } else {
-        Vec::new()
-    };
-    ImageMetrics {
-        pooled,
-        per_frame,
-        temporal: temporal(img, reference, exposure),
-    }
+    let frames = flips.len().max(1) as f64;
+    images
+        .iter()
+        .enumerate()
+        .map(|(i, img)| {
+            let mut pooled = compare_pixels(&img.data, &reference.data, exposure);
+            pooled.flip = flips.iter().map(|f| f[i].0).sum::<f64>() / frames;
+            pooled.hdr_flip = flips.iter().map(|f| f[i].1).sum::<f64>() / frames;
+            let per_frame = if img.frames > 1 {
+                (0..img.frames)
+                    .map(|f| Metrics {
+                        flip: flips[f][i].0,
+                        hdr_flip: flips[f][i].1,
+                        ..compare_pixels(img.frame(f), reference.frame(f), exposure)
+                    })
+                    .collect()
+            } else {
+                Vec::new()
+            };
+            ImageMetrics {
+                pooled,
+                per_frame,
+                temporal: temporal(img, reference, exposure),
+            }
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -347,13 +347,11 @@ pub fn run(
     let mut images: Vec<MethodImage> = early?.into_iter().chain(whitened?).chain(late?).collect();
     images.sort_by_key(|e| wanted.iter().position(|&w| w == (e.method, e.denoised)));
     let metrics = match options.reference {
-        Some(r) => images
-            .iter()
-            .map(|e| {
-                let m = metrics::compare(&e.image, r, config.exposure);
-                (e.name(), m)
-            })
-            .collect(),
+        Some(r) => {
+            let all: Vec<&Image> = images.iter().map(|e| &e.image).collect();
+            let m = metrics::compare_all(&all, r, config.exposure);
+            images.iter().map(|e| e.name()).zip(m).collect()
+        }
         None => BTreeMap::new(),
     };
     let rec = &core.reconstruction;
