@@ -48,7 +48,16 @@ pub fn write_marker<S: AsRef<str>>(dir: &Path, names: &[S]) -> Result<(), Error>
         text += n.as_ref();
         text.push('\n');
     }
-    std::fs::write(dir.join(MARKER), text).map_err(|e| Error::io(&dir.join(MARKER), e))
+    // Atomic: shards of one batch starting together each read it.
+    crate::atomic::write_bytes(&dir.join(MARKER), text.as_bytes())
+}
+
+/// Whether `name` is the marker or one of this tool's temporaries
+/// (`.NAME.XXXXXX.tmp`, `.NAME.XXXXXX.staging`): what another process of
+/// ours may be writing into a folder that is still new.
+fn ours_in_passing(name: &str) -> bool {
+    name == MARKER
+        || (name.starts_with('.') && (name.ends_with(".tmp") || name.ends_with(".staging")))
 }
 
 /// Writes `dir`'s [`MARKER`] listing every entry `dir` holds now.
@@ -316,20 +325,19 @@ pub fn check_ours(dest: &Path) -> Result<(), Error> {
     if !dest.is_dir() {
         return Err(Error::format(dest, "exists and is not a directory"));
     }
-    let mut listing = std::fs::read_dir(dest).map_err(|e| Error::io(dest, e))?;
-    match listing.next() {
+    let listing = std::fs::read_dir(dest).map_err(|e| Error::io(dest, e))?;
+    let mut foreign = listing
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| !ours_in_passing(n));
+    match foreign.next() {
         None => Ok(()),
-        Some(entry) => {
-            let name = entry
-                .map(|e| e.file_name().to_string_lossy().into_owned())
-                .unwrap_or_default();
-            Err(Error::format(
-                dest,
-                format!(
-                    "holds files pathdensity did not write ({name}, …): refusing to write into it (choose a new or empty folder)"
-                ),
-            ))
-        }
+        Some(name) => Err(Error::format(
+            dest,
+            format!(
+                "holds files pathdensity did not write ({name}, …): refusing to write into it (choose a new or empty folder)"
+            ),
+        )),
     }
 }
 

@@ -152,10 +152,10 @@ fn horizontal(plane: &[f32], w: usize, k: &[f32]) -> Vec<f32> {
     let mut out = vec![0.0f32; plane.len()];
     out.par_chunks_mut(w)
         .zip(plane.par_chunks(w))
-        .for_each_init(Vec::new, |padded, (out, src)| {
+        .for_each(|(out, src)| {
             // The row with its edge values repeated r times each side, so
             // that every output is one contiguous dot product.
-            padded.clear();
+            let mut padded = Vec::with_capacity(w + 2 * r);
             padded.extend(std::iter::repeat_n(src[0], r));
             padded.extend_from_slice(src);
             padded.extend(std::iter::repeat_n(src[w - 1], r));
