@@ -38,6 +38,16 @@ fn python(venv: &str, module: &str, require: &str, setup: &str) -> Option<PathBu
     None
 }
 
+/// tools/flip/.venv's python, with NVIDIA's FLIP.
+fn flip_python() -> Option<PathBuf> {
+    python(
+        "tools/flip/.venv",
+        "flip_evaluator",
+        "PATHDENSITY_REQUIRE_FLIP",
+        "bash tools/flip/setup.sh",
+    )
+}
+
 fn read(path: &Path) -> Image {
     let (w, h, px) = exr::read_rgb(path, exr::MAX_PIXELS).unwrap();
     let mut img = Image::new(w, h, 1);
@@ -103,12 +113,7 @@ fn within_1_percent(what: &str, ours: f64, theirs: f64) {
 
 #[test]
 fn flip_agrees_with_the_reference_on_our_fixtures() {
-    let Some(py) = python(
-        "tools/flip/.venv",
-        "flip_evaluator",
-        "PATHDENSITY_REQUIRE_FLIP",
-        "bash tools/flip/setup.sh",
-    ) else {
+    let Some(py) = flip_python() else {
         return;
     };
     let mut names = Vec::new();
@@ -136,12 +141,7 @@ fn flip_agrees_with_the_reference_on_our_fixtures() {
 
 #[test]
 fn report_json_holds_the_references_flip_on_a_mitsuba_scene() {
-    let Some(py) = python(
-        "tools/flip/.venv",
-        "flip_evaluator",
-        "PATHDENSITY_REQUIRE_FLIP",
-        "bash tools/flip/setup.sh",
-    ) else {
+    let Some(py) = flip_python() else {
         return;
     };
     let Some(mitsuba) = python(
