@@ -15,11 +15,12 @@
 //! as a fraction of the ramp.
 
 use pathdensity::config::FilterConfig;
+use pathdensity::density::sigma_map;
 use pathdensity::density::{ExactSigma, Strata};
 use pathdensity::dump::DumpReader;
 use pathdensity::pipeline;
 use pathdensity::progress::Silent;
-use pathdensity::recon::{Image, sigma_map};
+use pathdensity::recon::Image;
 use pathdensity::report::plots::sigma_scale;
 
 fn main() -> anyhow::Result<()> {

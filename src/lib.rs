@@ -8,8 +8,8 @@
 //! `pathdensity-format`; both are re-exported here under their usual names.
 
 pub use pathdensity_core::{
-    config, density, imagespace, joint, metrics, pipeline, progress, quantile, recon, regress,
-    sweep, synth,
+    config, density, imagespace, joint, method, metrics, pipeline, progress, quantile, recon,
+    regress, sweep, synth,
 };
 pub use pathdensity_format::{dump, image};
 

@@ -103,7 +103,7 @@ fn absurd_radiance_is_filtered_and_every_output_stays_finite() {
         let v = values[s as usize % values.len()];
         [v, 0.5 * v, -v]
     });
-    let (report, _) = run(&h, &recs, 10, JointSpace::default());
+    let (report, _) = run(&h, &recs, 10, JointSpace::PAPER);
     assert_eq!(report.counts.valid, recs.len() as u64);
 }
 
@@ -122,7 +122,7 @@ fn a_non_finite_value_in_any_field_makes_the_record_invalid() {
             bad += 1;
         }
     }
-    let (report, _) = run(&h, &recs, 10, JointSpace::default());
+    let (report, _) = run(&h, &recs, 10, JointSpace::PAPER);
     assert_eq!(report.counts.invalid.non_finite, 18);
     assert_eq!(report.counts.invalid.total(), 18);
 }
@@ -151,7 +151,7 @@ fn coordinates_on_and_beyond_the_film_and_time_edges() {
             recs.push(Record::new(x, y, t, [0.2, 0.2, 0.2]));
         }
     }
-    let (report, dec) = run(&h, &recs, 2, JointSpace::default());
+    let (report, dec) = run(&h, &recs, 2, JointSpace::PAPER);
     for (i, &(_, _, _, valid)) in cases.iter().cycle().take(recs.len()).enumerate() {
         assert_eq!(dec[i] != 0, valid, "case {i}");
     }
@@ -163,10 +163,10 @@ fn coordinates_on_and_beyond_the_film_and_time_edges() {
 fn k_of_one_and_k_above_the_sample_count() {
     let h = header(5, 5, 1);
     let recs = field(5, 5, 4, |s| [0.3 + 0.01 * s as f32, 0.3, 0.2]);
-    run(&h, &recs, 1, JointSpace::default());
+    run(&h, &recs, 1, JointSpace::PAPER);
     // k ≥ N: every σ is +∞, so the replay stores and rejects every sample…
     let options = ReplayOptions::default();
-    let space = JointSpace::default();
+    let space = JointSpace::PAPER;
     let dec = density::run(&recs, &h, &space, 1000, IndexKind::Grid, &options, &Silent);
     assert!(dec.decisions.iter().all(|&d| d == 3));
     // … which `filter` refuses before any work, naming k and the count.
@@ -194,7 +194,7 @@ fn extreme_sigmas() {
             let space = JointSpace {
                 sigma_image: si,
                 sigma_color: sc,
-                ..JointSpace::default()
+                ..JointSpace::PAPER
             };
             run(&h, &recs, 3, space);
         }
@@ -208,7 +208,7 @@ fn tiny_and_empty_films() {
         &one,
         &field(1, 1, 5, |_| [1.0, 1.0, 1.0]),
         2,
-        JointSpace::default(),
+        JointSpace::PAPER,
     );
     let e = filter_error(&one, &[Record::new(0.5, 0.5, 0.0, [2.0, 1.0, 0.0])], 10);
     assert!(e.contains("needs more than 1 valid samples"), "{e}");
@@ -254,7 +254,7 @@ fn one_frame_and_many_frames() {
             ));
         }
     }
-    let (report, _) = run(&header(1, 1, 300), &recs, 5, JointSpace::default());
+    let (report, _) = run(&header(1, 1, 300), &recs, 5, JointSpace::PAPER);
     assert_eq!(report.metrics.len(), 0);
     assert_eq!(report.counts.valid, 1200);
 }

@@ -312,8 +312,8 @@ fn the_recommended_image_keeps_the_highlight_and_drops_the_fireflies() {
         )
         .unwrap();
         assert_eq!(
-            pipeline::recommended(&run.images).as_deref(),
-            Some(Method::FilteredEnergyBilateralCi.name())
+            pipeline::recommended(&run.images),
+            Some(Method::FilteredEnergyBilateralCi.into())
         );
         let img = run.image(Method::FilteredEnergyBilateralCi).unwrap();
         let mean = run.image(Method::Mean).unwrap();

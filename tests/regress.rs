@@ -77,3 +77,30 @@ fn a_drift_is_reported_and_bless_rewrites_the_expectations() {
     assert!(bless.status.success());
     assert!(regress::check(&dir).unwrap().is_empty());
 }
+
+/// An image the run makes that the manifest does not expect (a method
+/// added since the fixture was blessed) is drift, not ignored.
+#[test]
+fn an_image_produced_but_not_expected_is_drift() {
+    let root = tempfile::tempdir().unwrap();
+    let dir = root.path().join("sky");
+    copy_dir(&fixtures().join("sky"), &dir);
+    let manifest = dir.join("manifest.json");
+    let mut m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
+    let expected = &mut m["expected"];
+    expected["metrics"].as_object_mut().unwrap().remove("clamp");
+    expected["images"]
+        .as_array_mut()
+        .unwrap()
+        .retain(|i| i != "clamp.exr");
+    std::fs::write(&manifest, serde_json::to_string(&m).unwrap()).unwrap();
+    let drift = regress::check(&dir).unwrap();
+    assert_eq!(
+        drift,
+        [
+            "clamp: produced but not expected (--bless adds it)",
+            "clamp.exr: written but not expected (--bless adds it)"
+        ],
+    );
+}

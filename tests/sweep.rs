@@ -107,12 +107,18 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
     f.html = false;
     let fr = pathdensity::commands::filter::filter(&f).unwrap();
     let by = |n: &str| s.baselines.iter().find(|b| b.method == n).unwrap().metrics;
-    assert_eq!(by("median"), fr.metrics["median"].pooled);
-    assert_eq!(by("trimmed"), fr.metrics["trimmed"].pooled);
-    assert_eq!(by("mon groups=11"), fr.metrics["mon"].pooled);
-    assert_eq!(by("rwmc kappa=32"), fr.metrics["rwmc"].pooled);
+    assert_eq!(by("median"), fr.metrics[&common::image("median")].pooled);
+    assert_eq!(by("trimmed"), fr.metrics[&common::image("trimmed")].pooled);
+    assert_eq!(
+        by("mon groups=11"),
+        fr.metrics[&common::image("mon")].pooled
+    );
+    assert_eq!(
+        by("rwmc kappa=32"),
+        fr.metrics[&common::image("rwmc")].pooled
+    );
     assert_ne!(by("rwmc kappa=2"), by("rwmc kappa=32"));
-    assert_eq!(by("clamp C=10"), fr.metrics["clamp"].pooled);
+    assert_eq!(by("clamp C=10"), fr.metrics[&common::image("clamp")].pooled);
     assert_ne!(by("clamp C=1"), by("clamp C=10"));
     let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
     // Two lines per configuration (filtered, filtered_energy), one per baseline.
@@ -191,7 +197,7 @@ fn equal_time_rows_are_prefix_renders_at_matching_time() {
         .into_iter()
         .collect();
         f.html = false;
-        filter(&f).unwrap().metrics[name].pooled
+        filter(&f).unwrap().metrics[&common::image(name)].pooled
     };
 
     // Rendering dominates (1e6 s for 8 passes): the mean gets as many

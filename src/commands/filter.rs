@@ -222,7 +222,7 @@ fn write_outputs(
             || {
                 run.images
                     .iter()
-                    .map(|e| (e.name(), &e.image))
+                    .map(|e| (e.id().to_string(), &e.image))
                     .chain([("rejected".to_string(), &run.removed)])
                     .collect::<Vec<_>>()
                     .par_iter()
@@ -262,7 +262,7 @@ fn write_outputs(
         metrics: run.metrics.clone(),
         recommended: pipeline::recommended(&run.images),
         reference: opts.reference.as_ref().map(|p| p.display().to_string()),
-        method_seconds: run.images.iter().map(|e| (e.name(), e.seconds)).collect(),
+        method_seconds: run.images.iter().map(|e| (e.id(), e.seconds)).collect(),
         energy_removed: EnergyRemoved::new(&run.removed, mean),
         sigma_scale,
         sigma_map_one_in: exact_sigma.share(),
@@ -322,8 +322,8 @@ fn write_outputs(
                         .par_iter()
                         .map(|e| {
                             let mut files = Vec::new();
-                            let frames = previews(&e.name(), tone(&e.image), &mut files)?;
-                            Ok((e.name(), frames, files))
+                            let frames = previews(&e.id().to_string(), tone(&e.image), &mut files)?;
+                            Ok((e.id().to_string(), frames, files))
                         })
                         .collect::<Result<Vec<(String, Vec<Vec<u8>>, Vec<String>)>>>()
                 },

@@ -114,7 +114,7 @@ pub fn render(report: &FilterReport, assets: &Assets) -> String {
         add("reference", "reference", r, "");
     }
     for (name, frames) in &assets.images {
-        let caption = match report.metrics.get(name) {
+        let caption = match name.parse().ok().and_then(|id| report.metrics.get(&id)) {
             Some(m) => format!(
                 "{name}: RMS {:.4}, RMS display {:.4}, FLIP {:.4}",
                 m.pooled.rms, m.pooled.rms_display, m.pooled.flip
@@ -236,14 +236,14 @@ fn metric_table(report: &FilterReport) -> String {
             }
             None => "<td colspan=\"7\">no reference</td>".into(),
         };
-        let class = if best.as_deref() == Some(name.as_str()) {
+        let class = if best == Some(name) {
             " class=\"best\""
         } else {
             ""
         };
         t += &format!(
             "<tr{class}><td>{}</td>{cells}<td>{seconds:.3}</td></tr>\n",
-            escape(&name)
+            escape(&name.to_string())
         );
     }
     t + "</tbody></table>"

@@ -6,8 +6,8 @@ use crate::config::{FilterConfig, Method};
 use crate::density::FilterCounts;
 use crate::dump::Header;
 use crate::joint::lab::luminance;
+use crate::method::ImageId;
 use crate::metrics::ImageMetrics;
-use crate::pipeline::image_name;
 use crate::recon::{Image, energy};
 
 pub mod html;
@@ -63,14 +63,14 @@ pub struct FilterReport {
     pub timing: Timing,
     /// Per image name (`mean`, `filtered`), metrics against the reference.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
-    pub metrics: BTreeMap<String, ImageMetrics>,
+    pub metrics: BTreeMap<ImageId, ImageMetrics>,
     /// The image a user should use (`Method::by_preference`); the first row
     /// of the printed table.
-    pub recommended: Option<String>,
+    pub recommended: Option<ImageId>,
     pub reference: Option<String>,
     /// Wall time to produce each image from the dump, passes it shares
     /// with other images included (see README).
-    pub method_seconds: BTreeMap<String, f64>,
+    pub method_seconds: BTreeMap<ImageId, f64>,
     /// What the path-density filter took out (`rejected.exr`).
     pub energy_removed: EnergyRemoved,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -156,15 +156,11 @@ impl FilterReport {
             "image", "RMS", "RMS display", "relMSE", "energy", "FLIP", "HDR-FLIP", "seconds"
         );
         for (name, seconds, m) in self.method_rows() {
-            let mark = if best.as_deref() == Some(name.as_str()) {
-                "*"
-            } else {
-                " "
-            };
-            let name = if self.recommended.as_deref() == Some(name.as_str()) {
+            let mark = if best == Some(name) { "*" } else { " " };
+            let name = if self.recommended == Some(name) {
                 format!("{name} (use)")
             } else {
-                name
+                name.to_string()
             };
             match m {
                 Some(m) => {
@@ -207,7 +203,7 @@ impl FilterReport {
         // rwmc's counting reliability is at most spp / κ: below κ samples
         // per pixel no cascade is fully trusted and the image darkens.
         let spp = self.header.spp as f64;
-        if self.method_seconds.contains_key(Method::Rwmc.name())
+        if self.method_seconds.contains_key(&Method::Rwmc.into())
             && spp > 0.0
             && self.config.rwmc_kappa > spp / 2.0
         {
@@ -245,15 +241,11 @@ impl FilterReport {
 impl FilterReport {
     /// (image name, seconds, metrics) for every image written, in the
     /// canonical method order.
-    pub fn method_rows(&self) -> Vec<(String, f64, Option<&ImageMetrics>)> {
-        let canonical = [false, true]
-            .into_iter()
-            .flat_map(|denoised| Method::ALL.iter().map(move |&m| image_name(m, denoised)));
-        let first = self.recommended.clone();
+    pub fn method_rows(&self) -> Vec<(ImageId, f64, Option<&ImageMetrics>)> {
+        let first = self.recommended;
         let names = first
-            .iter()
-            .cloned()
-            .chain(canonical.filter(|n| Some(n) != first.as_ref()));
+            .into_iter()
+            .chain(ImageId::all().filter(|&n| Some(n) != first));
         names
             .filter_map(|n| {
                 let secs = *self.method_seconds.get(&n)?;
@@ -264,10 +256,10 @@ impl FilterReport {
     }
 
     /// The image with the lowest linear RMS, if there is a reference.
-    pub fn best_rms(&self) -> Option<String> {
+    pub fn best_rms(&self) -> Option<ImageId> {
         self.metrics
             .iter()
             .min_by(|a, b| a.1.pooled.rms.total_cmp(&b.1.pooled.rms))
-            .map(|(n, _)| n.clone())
+            .map(|(&n, _)| n)
     }
 }

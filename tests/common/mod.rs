@@ -135,11 +135,22 @@ pub fn skipped(why: &str) {
     let _ = writeln!(std::io::stderr(), "SKIPPED: {why}");
 }
 
-/// Whether `python3` can import numpy.
+/// Whether `python3` can import numpy; with `PATHDENSITY_REQUIRE_NUMPY`
+/// set (CI sets it) its absence fails the test instead of skipping it.
 pub fn python_with_numpy() -> bool {
-    std::process::Command::new("python3")
+    let found = std::process::Command::new("python3")
         .args(["-c", "import numpy"])
         .status()
         .map(|s| s.success())
-        .unwrap_or(false)
+        .unwrap_or(false);
+    if !found && std::env::var_os("PATHDENSITY_REQUIRE_NUMPY").is_some() {
+        panic!("python3 cannot import numpy, and PATHDENSITY_REQUIRE_NUMPY is set");
+    }
+    found
+}
+
+/// The image named `name` (`mean`, `filtered+oidn`), for the maps of a report.
+#[allow(dead_code)]
+pub fn image(name: &str) -> pathdensity::method::ImageId {
+    name.parse().unwrap()
 }

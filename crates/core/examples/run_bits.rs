@@ -39,7 +39,7 @@ fn main() {
     println!("counts {:?}", run.counts);
     for e in &run.images {
         let bits: Vec<[u64; 3]> = e.image.data.iter().map(|p| p.map(f64::to_bits)).collect();
-        println!("{} {:016x}", e.name(), digest(&bits));
+        println!("{} {:016x}", e.id(), digest(&bits));
     }
     let sigma = run.sigma_image.expect("exact σ asked for");
     let bits: Vec<[u64; 3]> = sigma.data.iter().map(|p| p.map(f64::to_bits)).collect();

@@ -25,7 +25,7 @@ use crate::imagespace::bilateral::BilateralParams;
 pub use crate::joint::ColorSpace;
 use crate::joint::JointSpace;
 pub use crate::joint::white::White;
-pub use crate::pipeline::methods::{Method, MethodSet};
+pub use crate::method::{Method, MethodSet};
 use crate::recon::ReconFilter;
 use crate::recon::rwmc::RwmcParams;
 
@@ -161,27 +161,27 @@ impl FilterConfig {
     /// OIDN), with their authors' defaults.
     pub const DEFAULT: FilterConfig = FilterConfig {
         k: 5,
-        sigma_image: 3.0,
-        sigma_color: 50.0,
-        sigma_time: 2.0,
+        sigma_image: JointSpace::DEFAULT.sigma_image,
+        sigma_color: JointSpace::DEFAULT.sigma_color,
+        sigma_time: JointSpace::DEFAULT.sigma_time,
         white: White::Auto,
         recon: Recon::Box,
         index: IndexKind::Grid,
         methods: MethodSet::DEFAULT,
         alpha: 0.1,
-        bilateral_sigma_s: 2.0,
-        bilateral_sigma_r: 20.0,
+        bilateral_sigma_s: BilateralParams::DEFAULT.sigma_s,
+        bilateral_sigma_r: BilateralParams::DEFAULT.sigma_r,
         mon_groups: 11,
-        rwmc_cascades: 6,
-        rwmc_start: 1.0,
-        rwmc_base: 8.0,
-        rwmc_kappa: 32.0,
-        rwmc_min_luminance: 0.05,
+        rwmc_cascades: RwmcParams::DEFAULT.cascades,
+        rwmc_start: RwmcParams::DEFAULT.start,
+        rwmc_base: RwmcParams::DEFAULT.base,
+        rwmc_kappa: RwmcParams::DEFAULT.kappa,
+        rwmc_min_luminance: RwmcParams::DEFAULT.min_luminance,
         energy_sigma: 8.0,
         clamp: 10.0,
         exposure: 1.0,
         denoise: Denoise::None,
-        color_space: ColorSpace::Logluv,
+        color_space: JointSpace::DEFAULT.color,
         final_pass: FinalPass::All,
     };
 
@@ -192,9 +192,11 @@ impl FilterConfig {
     /// --sigma-color 100` on the command line.
     pub const PAPER: FilterConfig = FilterConfig {
         k: 10,
-        sigma_color: 100.0,
-        white: White::Fixed(1.0),
-        color_space: ColorSpace::Cielab,
+        sigma_image: JointSpace::PAPER.sigma_image,
+        sigma_color: JointSpace::PAPER.sigma_color,
+        sigma_time: JointSpace::PAPER.sigma_time,
+        white: White::Fixed(JointSpace::PAPER.white),
+        color_space: JointSpace::PAPER.color,
         final_pass: FinalPass::Stored,
         ..FilterConfig::DEFAULT
     };

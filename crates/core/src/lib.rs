@@ -8,7 +8,7 @@
 //! [`pipeline`] runs it with no file I/O; [`sweep`] and [`regress`] are
 //! built on it. No command line, plots or HTML here.
 
-pub use pathdensity_format::dump;
+pub use pathdensity_format::{dump, image};
 
 /// Files in and out (from `pathdensity-format`).
 pub mod io {
@@ -19,6 +19,7 @@ pub mod config;
 pub mod density;
 pub mod imagespace;
 pub mod joint;
+pub mod method;
 pub mod metrics;
 pub mod par;
 pub mod pipeline;

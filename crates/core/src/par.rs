@@ -38,6 +38,20 @@ pub fn max_threads() -> usize {
     (4 * cores).max(64)
 }
 
+/// A pool of `threads` workers (0: one per core, at most [`max_threads`]).
+/// Without the `parallel` feature, the one thread there is.
+pub fn pool(threads: usize) -> Result<ThreadPool, ThreadPoolBuildError> {
+    #[cfg(feature = "parallel")]
+    return rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.min(max_threads()))
+        .build();
+    #[cfg(not(feature = "parallel"))]
+    {
+        let _ = threads;
+        Ok(ThreadPool)
+    }
+}
+
 #[cfg(not(feature = "parallel"))]
 pub use sequential::*;
 

@@ -15,6 +15,7 @@ use crate::dump::DumpReader;
 use crate::io::atomic::{self, Staging};
 use crate::io::exr;
 use crate::io::guard::{self, Inputs};
+use crate::method::ImageId;
 use crate::metrics::Metrics;
 use crate::pipeline::{self, Run, RunOptions};
 use crate::progress::Silent;
@@ -90,7 +91,7 @@ impl From<&Metrics> for ExpectedMetrics {
 pub struct Expected {
     pub counts: ExpectedCounts,
     /// Per image name, pooled metrics against the reference.
-    pub metrics: BTreeMap<String, ExpectedMetrics>,
+    pub metrics: BTreeMap<ImageId, ExpectedMetrics>,
     /// Image files under `expected/`.
     pub images: Vec<String>,
 }
@@ -173,7 +174,7 @@ fn run(dir: &Path, m: &Manifest) -> Result<Outcome> {
     let run = run.with_context(|| format!("{}", dir.join("manifest.json").display()))?;
     let mut images: Vec<(String, Image)> = Vec::new();
     for e in run.images.iter() {
-        images.push((e.name(), e.image.clone()));
+        images.push((e.id().to_string(), e.image.clone()));
     }
     images.push(("rejected".into(), run.removed.clone()));
     let mut files = Vec::new();
@@ -191,7 +192,7 @@ fn run(dir: &Path, m: &Manifest) -> Result<Outcome> {
         metrics: run
             .metrics
             .iter()
-            .map(|(n, m)| (n.clone(), (&m.pooled).into()))
+            .map(|(&n, m)| (n, (&m.pooled).into()))
             .collect(),
         images: files.iter().map(|f| f.0.clone()).collect(),
     };
@@ -244,6 +245,16 @@ pub fn check(dir: &Path) -> Result<Vec<String>> {
                 drift.push(format!("{name}: {what} {b:.6} → {a:.6}"));
             }
         }
+    }
+    for name in got.metrics.keys().filter(|n| !want.metrics.contains_key(n)) {
+        drift.push(format!(
+            "{name}: produced but not expected (--bless adds it)"
+        ));
+    }
+    for (file, _) in outcome.files.iter().filter(|f| !want.images.contains(&f.0)) {
+        drift.push(format!(
+            "{file}: written but not expected (--bless adds it)"
+        ));
     }
     for file in &want.images {
         let expected = dir.join("expected").join(file);

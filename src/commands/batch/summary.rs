@@ -14,8 +14,8 @@ use super::{Entry, Status};
 use crate::config::Method;
 use crate::density::FilterCounts;
 use crate::io::{atomic, guard};
+use crate::method::ImageId;
 use crate::metrics::{ImageMetrics, Metrics};
-use crate::pipeline::image_name;
 use crate::report::Timing;
 use crate::report::html::escape;
 use crate::report::plots::to_svg;
@@ -30,8 +30,8 @@ pub struct ReportDigest {
     pub empty_pixels: u64,
     pub timing: Timing,
     #[serde(default)]
-    pub metrics: BTreeMap<String, ImageMetrics>,
-    pub recommended: Option<String>,
+    pub metrics: BTreeMap<ImageId, ImageMetrics>,
+    pub recommended: Option<ImageId>,
     #[serde(skip_serializing)]
     pub outputs: Vec<String>,
     #[serde(skip_serializing)]
@@ -126,10 +126,8 @@ pub fn write(out_dir: &Path, entries: &[Entry]) -> Result<PathBuf> {
 }
 
 /// Every image with metrics in some dump, in the canonical order.
-fn image_names(dumps: &[(&Entry, Option<ReportDigest>)]) -> Vec<String> {
-    [false, true]
-        .into_iter()
-        .flat_map(|d| Method::ALL.iter().map(move |&m| image_name(m, d)))
+fn image_names(dumps: &[(&Entry, Option<ReportDigest>)]) -> Vec<ImageId> {
+    ImageId::all()
         .filter(|n| {
             dumps
                 .iter()
@@ -170,7 +168,7 @@ const FIXED: [&str; 24] = [
 /// `IMAGE.temporal_rms`, `IMAGE.temporal_rms_display`). A frame's row
 /// (`frame` 0, 1, …) has that frame's metrics and leaves the dump's
 /// counts and times to the dump's row (`frame` empty).
-fn csv(dumps: &[(&Entry, Option<ReportDigest>)], images: &[String]) -> Result<Vec<u8>> {
+fn csv(dumps: &[(&Entry, Option<ReportDigest>)], images: &[ImageId]) -> Result<Vec<u8>> {
     let animated = dumps
         .iter()
         .any(|(_, r)| r.as_ref().is_some_and(|r| r.header.frames > 1));
@@ -226,7 +224,7 @@ fn csv(dumps: &[(&Entry, Option<ReportDigest>)], images: &[String]) -> Result<Ve
                     .map(|v| v.to_string()),
                 ),
         );
-        row.push(r.recommended.clone().unwrap_or_default());
+        row.push(r.recommended.map(|r| r.to_string()).unwrap_or_default());
         row.extend(
             [
                 t.open_seconds,
@@ -284,7 +282,7 @@ thead th { border-bottom: 1px solid #888; } tr.failed td { color: #a00; }
 
 /// `summary.html`: counts, one table row per dump (linked to its report),
 /// and the plots.
-fn html(out_dir: &Path, dumps: &[(&Entry, Option<ReportDigest>)], images: &[String]) -> String {
+fn html(out_dir: &Path, dumps: &[(&Entry, Option<ReportDigest>)], images: &[ImageId]) -> String {
     let n = |s| dumps.iter().filter(|(e, _)| e.status == s).count();
     let mut s = format!(
         "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>pathdensity batch</title><style>{STYLE}</style></head><body>\n<h1>pathdensity batch: {} dumps</h1>\n<p>{} filtered, {} skipped (up to date), {} failed. Each dump's outputs are in <code>OUTDIR/NAME/</code>; the numbers are in <code>summary.csv</code> and <code>summary.json</code>.</p>\n",
@@ -311,20 +309,19 @@ fn html(out_dir: &Path, dumps: &[(&Entry, Option<ReportDigest>)], images: &[Stri
         match r {
             Some(r) => {
                 let c = &r.counts;
-                let display = |i: &str| {
-                    r.metrics
-                        .get(i)
+                let display = |i: Option<ImageId>| {
+                    i.and_then(|i| r.metrics.get(&i))
                         .map_or(String::new(), |m| format!("{:.5}", m.pooled.rms_display))
                 };
-                let rec = r.recommended.clone().unwrap_or_default();
+                let rec = r.recommended.map(|r| r.to_string()).unwrap_or_default();
                 s += &format!(
                     "<tr{class}><td>{name}</td><td class=\"text\">{status}</td><td>{}</td><td>{:.3}%</td><td>{:.2}</td><td class=\"text\">{}</td><td>{}</td><td>{}</td><td class=\"text\">{problem}</td></tr>\n",
                     c.valid,
                     100.0 * c.rejected as f64 / c.valid.max(1) as f64,
                     r.timing.total_seconds,
                     escape(&rec),
-                    display(&rec),
-                    display("mean"),
+                    display(r.recommended),
+                    display(Some(Method::Mean.into())),
                 );
             }
             None => {
@@ -339,7 +336,7 @@ fn html(out_dir: &Path, dumps: &[(&Entry, Option<ReportDigest>)], images: &[Stri
         .iter()
         .filter_map(|(e, r)| {
             r.as_ref()
-                .filter(|r| r.metrics.contains_key("mean"))
+                .filter(|r| r.metrics.contains_key(&Method::Mean.into()))
                 .map(|r| (e.name.as_str(), r))
         })
         .collect();
@@ -368,23 +365,23 @@ fn html(out_dir: &Path, dumps: &[(&Entry, Option<ReportDigest>)], images: &[Stri
 /// a plotting error becomes a line of text.
 fn plot(
     dumps: &[(&str, &ReportDigest)],
-    images: &[String],
+    images: &[ImageId],
     what: &str,
     value: impl Fn(&ImageMetrics) -> Option<f64>,
 ) -> String {
-    let mut series: Vec<(&str, Vec<(f64, f64)>)> = Vec::new();
-    for i in images.iter().filter(|i| *i != "mean") {
+    let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+    for i in images.iter().filter(|&&i| i != Method::Mean.into()) {
         let pts: Vec<(f64, f64)> = dumps
             .iter()
             .enumerate()
             .filter_map(|(x, (_, r))| {
                 let v = value(r.metrics.get(i)?)?;
-                let mean = value(r.metrics.get("mean")?)?;
+                let mean = value(r.metrics.get(&Method::Mean.into())?)?;
                 (mean > 0.0).then_some((x as f64, v / mean))
             })
             .collect();
         if !pts.is_empty() {
-            series.push((i, pts));
+            series.push((i.to_string(), pts));
         }
     }
     let y_max = series
@@ -434,7 +431,7 @@ fn plot(
             chart
                 .draw_series(clipped.iter().map(|&p| Circle::new(p, 4, color.filled())))
                 .map_err(e)?
-                .label(*name)
+                .label(name.as_str())
                 .legend(move |(x, y)| Circle::new((x, y), 4, color.filled()));
         }
         chart

@@ -133,7 +133,6 @@ impl Accepted<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::FilterConfig;
     use crate::density::index::grid::Grid;
     use crate::density::index::kdtree::KdTree;
     use crate::density::{Strata, plain};
@@ -156,7 +155,7 @@ mod tests {
                 ..SynthParams::default()
             };
             let (h, records): (_, Vec<Record>) = (synth.header(), synth.records().collect());
-            let space = FilterConfig::DEFAULT.space(0.5);
+            let space = JointSpace::DEFAULT.with_white(0.5);
             let k = 4;
             let plain = plain::replay(&records, &h, &space, k);
             let want = plain.sigma.as_ref().unwrap().to_dense(records.len());

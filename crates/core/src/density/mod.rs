@@ -24,10 +24,12 @@ pub mod plain;
 mod schedule;
 mod seeds;
 pub mod sigma;
+mod sigma_map;
 
 pub use exact::{ExactSigma, Strata};
 pub use index::IndexKind;
 pub use kept::Sigmas;
+pub use sigma_map::sigma_map;
 
 use index::grid::Grid;
 use index::kdtree::KdTree;

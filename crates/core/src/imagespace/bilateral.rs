@@ -6,7 +6,6 @@
 
 use crate::par::prelude::*;
 
-use crate::config::FilterConfig;
 use crate::joint::lab::rgb_to_lab;
 use crate::recon::Image;
 
@@ -18,9 +17,17 @@ pub struct BilateralParams {
     pub sigma_r: f64,
 }
 
+impl BilateralParams {
+    /// σ_s = 2 px, σ_r = 20 ΔE.
+    pub const DEFAULT: BilateralParams = BilateralParams {
+        sigma_s: 2.0,
+        sigma_r: 20.0,
+    };
+}
+
 impl Default for BilateralParams {
     fn default() -> Self {
-        FilterConfig::DEFAULT.bilateral()
+        BilateralParams::DEFAULT
     }
 }
 
@@ -228,7 +235,7 @@ mod tests {
             };
             let want = per_pixel(&img, &occ, p, 0.7);
             for threads in [1, 2, 3, 8] {
-                let pool = crate::pipeline::thread_pool(threads).unwrap();
+                let pool = crate::par::pool(threads).unwrap();
                 let got = pool.install(|| bilateral(&img, &occ, p, 0.7));
                 let same = got
                     .data

@@ -71,11 +71,35 @@ pub struct JointSpace {
     pub color: ColorSpace,
 }
 
+impl JointSpace {
+    /// The shipped joint space, chosen by measurement (docs/RESULTS.md,
+    /// "HDR fidelity: the defaults"): `logluv` (F2b), σ_image = 3 px,
+    /// σ_color = 50, σ_time = 2 frames; white 1 until a run resolves it.
+    pub const DEFAULT: JointSpace = JointSpace {
+        sigma_image: 3.0,
+        sigma_color: 50.0,
+        sigma_time: 2.0,
+        white: 1.0,
+        color: ColorSpace::Logluv,
+    };
+
+    /// The paper's joint space: CIELAB (F2), σ_image = 3, σ_color = 100,
+    /// σ_time = 2, white 1.
+    pub const PAPER: JointSpace = JointSpace {
+        sigma_color: 100.0,
+        color: ColorSpace::Cielab,
+        ..JointSpace::DEFAULT
+    };
+
+    /// The same scales with the white luminance `white`.
+    pub const fn with_white(self, white: f64) -> JointSpace {
+        JointSpace { white, ..self }
+    }
+}
+
 impl Default for JointSpace {
-    /// The paper's scales ([`crate::config::FilterConfig::DEFAULT`]) with
-    /// white 1.
     fn default() -> Self {
-        crate::config::FilterConfig::DEFAULT.space(1.0)
+        JointSpace::DEFAULT
     }
 }
 

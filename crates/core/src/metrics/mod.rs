@@ -2,8 +2,8 @@
 
 pub mod flip;
 
+use crate::image::{Image, stored};
 use crate::joint::lab::luminance;
-use crate::recon::{Image, stored};
 
 /// All metrics of one image against a reference, over a set of pixels.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]

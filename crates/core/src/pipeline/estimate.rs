@@ -1,6 +1,6 @@
 //! The estimators: how each [`Method`]'s image is made from a dump, the
 //! filter's decisions and a configuration (what each method is, needs
-//! and shares is its row of [`super::methods::TABLE`]). `filter`, `sweep`, the
+//! and shares is its row of [`crate::method::TABLE`]). `filter`, `sweep`, the
 //! equal-time comparison and the regression fixtures all ask it.
 //!
 //! Estimators that share work (the per-pixel grouping behind median,
@@ -15,11 +15,11 @@
 use std::sync::OnceLock;
 use std::time::Instant;
 
-use super::methods::Method;
-pub use super::methods::Piece;
 use crate::config::FilterConfig;
 use crate::dump::{Header, Record};
 use crate::imagespace;
+use crate::method::Method;
+pub use crate::method::Piece;
 use crate::par::prelude::*;
 use crate::recon::confidence::{self, Interval};
 use crate::recon::groups::PixelGroups;

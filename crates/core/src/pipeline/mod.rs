@@ -7,7 +7,6 @@
 mod check;
 pub mod estimate;
 pub mod memory;
-pub mod methods;
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -15,13 +14,13 @@ use std::time::Instant;
 use crate::config::{ConfigError, Denoise, FilterConfig, FinalPass};
 use crate::density::{self, Decision, ExactSigma, FilterCounts, FilterResult, ReplayOptions};
 use crate::dump::{Header, Record};
+use crate::method::{ImageId, Method};
 use crate::metrics::{self, ImageMetrics};
 use crate::par::prelude::*;
 use crate::progress::Progress;
 use crate::recon::{self, Image, Reconstruction};
 pub use check::{check, check_counted, k_fits, resolve_white};
 use estimate::{Core, Estimators, Shared};
-use methods::Method;
 
 /// Why a run could not start.
 #[derive(Debug, thiserror::Error)]
@@ -47,8 +46,8 @@ pub enum PipelineError {
         free: u64,
         film: String,
     },
-    #[error("{method}: {problem}")]
-    Method { method: String, problem: String },
+    #[error("{image}: {problem}")]
+    Method { image: ImageId, problem: String },
 }
 
 impl From<ConfigError> for PipelineError {
@@ -79,28 +78,21 @@ pub struct MethodImage {
 }
 
 impl MethodImage {
-    /// The image's name: the method's, `+oidn` when denoised.
-    pub fn name(&self) -> String {
-        image_name(self.method, self.denoised)
+    pub fn id(&self) -> ImageId {
+        ImageId {
+            method: self.method,
+            denoised: self.denoised,
+        }
     }
 }
 
-/// `method`'s image name, `METHOD+oidn` when denoised.
-pub fn image_name(method: Method, denoised: bool) -> String {
-    if denoised {
-        format!("{method}+oidn")
-    } else {
-        method.name().to_string()
-    }
-}
-
-/// The name of the recommended image among `images`: the first a run
-/// made in the table's order of preference ([`Method::by_preference`]).
-pub fn recommended(images: &[MethodImage]) -> Option<String> {
+/// The recommended image among `images`: the first a run made in the
+/// table's order of preference ([`Method::by_preference`]).
+pub fn recommended(images: &[MethodImage]) -> Option<ImageId> {
     Method::by_preference()
         .into_iter()
-        .find(|&m| images.iter().any(|e| e.method == m && !e.denoised))
-        .map(|m| image_name(m, false))
+        .find(|&m| images.iter().any(|e| e.id() == m.into()))
+        .map(ImageId::from)
 }
 
 /// The images a configuration makes, in order: every selected method, and
@@ -140,7 +132,7 @@ pub struct Run {
     /// Per pixel the mean exact σ of its samples (with `exact_sigma`).
     pub sigma_image: Option<Image>,
     /// Per method name, against the reference (empty without one).
-    pub metrics: BTreeMap<String, ImageMetrics>,
+    pub metrics: BTreeMap<ImageId, ImageMetrics>,
     pub streaming_seconds: f64,
     pub final_pass_seconds: f64,
     /// After the replay: the filtered image, the images that need the
@@ -161,18 +153,9 @@ impl Run {
     }
 }
 
-/// A thread pool of `threads` workers (0: one per core).
-/// Without the `parallel` feature, the one thread there is.
+/// A thread pool of `threads` workers (0: one per core); [`crate::par::pool`].
 pub fn thread_pool(threads: usize) -> Result<crate::par::ThreadPool, PipelineError> {
-    #[cfg(feature = "parallel")]
-    return Ok(rayon::ThreadPoolBuilder::new()
-        .num_threads(threads.min(crate::par::max_threads()))
-        .build()?);
-    #[cfg(not(feature = "parallel"))]
-    {
-        let _ = threads;
-        Ok(crate::par::ThreadPool)
-    }
+    Ok(crate::par::pool(threads)?)
 }
 
 /// What a user should hear about a run that succeeded: most samples
@@ -338,7 +321,7 @@ pub fn run(
                     },
                     || {
                         let sigma = result.sigma.as_ref();
-                        sigma.map(|s| recon::sigma_map(records, header, s))
+                        sigma.map(|s| density::sigma_map(records, header, s))
                     },
                 )
             },
@@ -350,7 +333,7 @@ pub fn run(
         Some(r) => {
             let all: Vec<&Image> = images.iter().map(|e| &e.image).collect();
             let m = metrics::compare_all(&all, r, config.exposure);
-            images.iter().map(|e| e.name()).zip(m).collect()
+            images.iter().map(MethodImage::id).zip(m).collect()
         }
         None => BTreeMap::new(),
     };
@@ -393,7 +376,7 @@ fn images(
                 estimators.image(method)
             };
             let (image, seconds) = made.map_err(|problem| PipelineError::Method {
-                method: image_name(method, denoised),
+                image: ImageId { method, denoised },
                 problem,
             })?;
             Ok(MethodImage {

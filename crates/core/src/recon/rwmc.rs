@@ -13,7 +13,6 @@
 use crate::par::prelude::*;
 
 use super::Image;
-use crate::config::FilterConfig;
 use crate::dump::{Header, Record, Validity};
 use crate::joint::lab::luminance;
 
@@ -32,10 +31,21 @@ pub struct RwmcParams {
     pub min_luminance: f64,
 }
 
+impl RwmcParams {
+    /// The authors' defaults (Zirr et al. 2018): S = 6 cascades from
+    /// s₀ = 1 with ratio b = 8, κ = 32, reliable below luminance 0.05.
+    pub const DEFAULT: RwmcParams = RwmcParams {
+        cascades: 6,
+        start: 1.0,
+        base: 8.0,
+        kappa: 32.0,
+        min_luminance: 0.05,
+    };
+}
+
 impl Default for RwmcParams {
-    /// The authors' defaults, as [`FilterConfig::DEFAULT`] states them.
     fn default() -> Self {
-        FilterConfig::DEFAULT.rwmc()
+        RwmcParams::DEFAULT
     }
 }
 

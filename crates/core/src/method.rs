@@ -1,0 +1,621 @@
+//! The images a run can produce: the path-density filter, its baselines
+//! (docs/filter.md, "Methods"), the peer methods and the combinations the
+//! paper shows, each one row of [`TABLE`]: its name, what it needs, the
+//! work it shares, its role in sweeps, whether it is made by default and
+//! whether it can be the recommended image. Everything else about methods
+//! (the list of all, the names, the default set, the sweeps' peers, the
+//! recommended order) is derived from the table. How each image is made is
+//! its estimator, [`crate::pipeline::estimate::Estimators::image`].
+
+use std::str::FromStr;
+
+/// One output image. The names are the file names (`NAME.exr`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Method {
+    /// All valid samples.
+    Mean,
+    /// The accepted samples (the path-density filter).
+    Filtered,
+    /// Per-pixel, per-channel median of the samples.
+    Median,
+    /// Per-pixel, per-channel α-trimmed mean.
+    Trimmed,
+    /// The bilateral filter applied to the mean.
+    Bilateral,
+    /// 3 × 3 image-space median of the mean (the paper's Figure 3).
+    Median3,
+    /// The bilateral filter applied to the filtered image (Figure 6d).
+    FilteredBilateral,
+    /// Per-pixel median of means (Buisine et al. 2021).
+    Mon,
+    /// Gini-adaptive median of means (Buisine et al. 2021).
+    Gmon,
+    /// Reweighted cascades (Zirr et al. 2018).
+    Rwmc,
+    /// The filtered image with the removed energy spread back
+    /// ([`crate::recon::energy`]).
+    FilteredEnergy,
+    /// Every sample clamped to a largest component of C, then the mean
+    /// (pbrt-v4's `maxcomponentvalue`; [`crate::recon::clamp`]).
+    Clamp,
+    /// filtered_energy, then the bilateral filter, held per pixel and
+    /// channel inside the confidence interval of the pixel's mean
+    /// ([`crate::recon::confidence`]): the pure-Rust build's recommended
+    /// image.
+    FilteredEnergyBilateralCi,
+    /// Intel Open Image Denoise's `RT` filter on the mean
+    /// ([`crate::imagespace::oidn`]; only in builds with the `oidn` feature).
+    Oidn,
+    /// OIDN's image of the mean held, per pixel and channel, inside the
+    /// confidence interval of the pixel's mean
+    /// ([`crate::recon::confidence`]; only with the `oidn` feature).
+    OidnCi,
+}
+
+/// What an image is made from besides the samples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Needs {
+    /// The filter's decisions: the image is made after the replay. The
+    /// others are made from the samples alone, beside it.
+    pub decisions: bool,
+    /// The white luminance (docs/filter.md §1): the bilateral filter's ΔE.
+    pub white: bool,
+    /// Intel Open Image Denoise (a build with the `oidn` feature).
+    pub oidn: bool,
+}
+
+const SAMPLES: Needs = Needs {
+    decisions: false,
+    white: false,
+    oidn: false,
+};
+const DECISIONS: Needs = Needs {
+    decisions: true,
+    ..SAMPLES
+};
+const WHITE: Needs = Needs {
+    white: true,
+    ..SAMPLES
+};
+const OIDN: Needs = Needs {
+    oidn: true,
+    ..SAMPLES
+};
+
+/// Work several images share, made once per configuration
+/// ([`crate::pipeline::estimate::Estimators::prepare`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Piece {
+    /// Median and trimmed (`recon::robust::robust_images`).
+    Robust,
+    /// mon and gmon (`recon::mon::mon_images`).
+    Mon,
+    /// filtered_energy's image.
+    FilteredEnergy,
+    /// Every pixel's confidence interval.
+    Interval,
+    /// OIDN's image of the mean.
+    OidnMean,
+}
+
+impl Piece {
+    pub const ALL: [Piece; 5] = [
+        Piece::Robust,
+        Piece::Mon,
+        Piece::FilteredEnergy,
+        Piece::Interval,
+        Piece::OidnMean,
+    ];
+
+    /// The shared pieces `method`'s image is made from (a test checks
+    /// that no image uses a piece not listed).
+    pub fn of(method: Method) -> &'static [Piece] {
+        method.row().pieces
+    }
+}
+
+/// The one parameter `sweep` varies for a peer method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Param {
+    /// `mon_groups`.
+    MonGroups,
+    /// `rwmc_kappa`.
+    RwmcKappa,
+    /// `clamp`.
+    Clamp,
+}
+
+impl Param {
+    /// In the order sweeps list them.
+    pub const ALL: [Param; 3] = [Param::MonGroups, Param::RwmcKappa, Param::Clamp];
+
+    /// How a sweep's label names it: `mon groups=11`.
+    pub fn key(self) -> &'static str {
+        match self {
+            Param::MonGroups => "groups",
+            Param::RwmcKappa => "kappa",
+            Param::Clamp => "C",
+        }
+    }
+}
+
+/// A method's part in `sweep` and `sweep --equal-time`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Role {
+    /// The filter's own images, made at every point of the grid (and at
+    /// every prefix of the equal-time comparison).
+    Grid,
+    /// A baseline, made once at the sweep's base configuration and in
+    /// the equal-time comparison of the whole dump.
+    Baseline,
+    /// A baseline that is also compared at equal time, prefix by prefix.
+    EqualTime,
+    /// A peer method: one image per value of its parameter, and compared
+    /// at equal time.
+    Peer(Param),
+    /// Not in sweeps.
+    Outside,
+}
+
+/// One row of the method table.
+#[derive(Clone, Copy, Debug)]
+pub struct Row {
+    pub method: Method,
+    /// The image's name: its file (`NAME.exr`), its key in reports, its
+    /// spelling in `--methods` and in JSON.
+    pub name: &'static str,
+    pub needs: Needs,
+    /// The work it shares with other images.
+    pub pieces: &'static [Piece],
+    pub role: Role,
+    /// Made unless `--methods` says otherwise (a method that needs OIDN
+    /// only in builds that have it).
+    pub default: bool,
+    /// Its rank as the image a user should use, 0 first: the first of the
+    /// ranked images a run made is its `recommended` image. Chosen by
+    /// measurement (docs/RESULTS.md, "Which image to use").
+    pub recommend: Option<u8>,
+}
+
+/// Every method, in the canonical order: `TABLE[m as usize].method == m`
+/// (checked when the crate compiles).
+pub const TABLE: [Row; 15] = [
+    Row {
+        method: Method::Mean,
+        name: "mean",
+        needs: SAMPLES,
+        pieces: &[],
+        role: Role::Baseline,
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::Filtered,
+        name: "filtered",
+        needs: DECISIONS,
+        pieces: &[],
+        role: Role::Grid,
+        default: true,
+        recommend: Some(3),
+    },
+    Row {
+        method: Method::Median,
+        name: "median",
+        needs: SAMPLES,
+        pieces: &[Piece::Robust],
+        role: Role::Baseline,
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::Trimmed,
+        name: "trimmed",
+        needs: SAMPLES,
+        pieces: &[Piece::Robust],
+        role: Role::Baseline,
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::Bilateral,
+        name: "bilateral",
+        needs: WHITE,
+        pieces: &[],
+        role: Role::Baseline,
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::Median3,
+        name: "median3",
+        needs: SAMPLES,
+        pieces: &[],
+        role: Role::Outside,
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::FilteredBilateral,
+        name: "filtered_bilateral",
+        needs: Needs {
+            white: true,
+            ..DECISIONS
+        },
+        pieces: &[],
+        role: Role::Outside,
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::Mon,
+        name: "mon",
+        needs: SAMPLES,
+        pieces: &[Piece::Mon],
+        role: Role::Peer(Param::MonGroups),
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::Gmon,
+        name: "gmon",
+        needs: SAMPLES,
+        pieces: &[Piece::Mon],
+        role: Role::Peer(Param::MonGroups),
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::Rwmc,
+        name: "rwmc",
+        needs: SAMPLES,
+        pieces: &[],
+        role: Role::Peer(Param::RwmcKappa),
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::FilteredEnergy,
+        name: "filtered_energy",
+        needs: DECISIONS,
+        pieces: &[Piece::FilteredEnergy],
+        role: Role::Grid,
+        default: true,
+        recommend: Some(2),
+    },
+    Row {
+        method: Method::Clamp,
+        name: "clamp",
+        needs: SAMPLES,
+        pieces: &[],
+        role: Role::Peer(Param::Clamp),
+        default: true,
+        recommend: None,
+    },
+    Row {
+        method: Method::FilteredEnergyBilateralCi,
+        name: "filtered_energy_bilateral_ci",
+        needs: Needs {
+            white: true,
+            ..DECISIONS
+        },
+        pieces: &[Piece::FilteredEnergy, Piece::Interval],
+        role: Role::Outside,
+        default: true,
+        recommend: Some(1),
+    },
+    Row {
+        method: Method::Oidn,
+        name: "oidn",
+        needs: OIDN,
+        pieces: &[Piece::OidnMean],
+        role: Role::EqualTime,
+        // Asked for by name, or with `denoise`.
+        default: false,
+        recommend: None,
+    },
+    Row {
+        method: Method::OidnCi,
+        name: "oidn_ci",
+        needs: OIDN,
+        pieces: &[Piece::OidnMean, Piece::Interval],
+        role: Role::EqualTime,
+        default: true,
+        recommend: Some(0),
+    },
+];
+
+const _: () = {
+    let mut i = 0;
+    while i < TABLE.len() {
+        assert!(TABLE[i].method as usize == i, "TABLE is in Method's order");
+        i += 1;
+    }
+};
+
+impl Method {
+    /// How many methods there are.
+    pub const COUNT: usize = TABLE.len();
+
+    /// Every method, in the canonical order.
+    pub const ALL: [Method; Method::COUNT] = {
+        let mut all = [Method::Mean; Method::COUNT];
+        let mut i = 0;
+        while i < Method::COUNT {
+            all[i] = TABLE[i].method;
+            i += 1;
+        }
+        all
+    };
+
+    /// This method's row of [`TABLE`].
+    pub const fn row(self) -> &'static Row {
+        &TABLE[self as usize]
+    }
+
+    pub const fn name(self) -> &'static str {
+        self.row().name
+    }
+
+    /// Whether the image depends on the filter's decisions.
+    pub const fn needs_decisions(self) -> bool {
+        self.row().needs.decisions
+    }
+
+    /// Whether the image needs the white luminance.
+    pub const fn needs_white(self) -> bool {
+        self.row().needs.white
+    }
+
+    /// Whether the image needs OIDN.
+    pub const fn needs_oidn(self) -> bool {
+        self.row().needs.oidn
+    }
+
+    /// Whether this build can make the image.
+    pub const fn available(self) -> bool {
+        !self.needs_oidn() || crate::imagespace::oidn::AVAILABLE
+    }
+
+    /// The methods that can be recommended, most preferred first.
+    pub fn by_preference() -> Vec<Method> {
+        let mut ranked: Vec<(u8, Method)> = TABLE
+            .iter()
+            .filter_map(|r| r.recommend.map(|rank| (rank, r.method)))
+            .collect();
+        ranked.sort();
+        ranked.into_iter().map(|(_, m)| m).collect()
+    }
+
+    /// The methods whose role in sweeps is `role` and that this build
+    /// can make, in the canonical order.
+    pub fn with_role(role: impl Fn(Role) -> bool) -> impl Iterator<Item = Method> {
+        Method::ALL
+            .into_iter()
+            .filter(move |m| role(m.row().role) && m.available())
+    }
+}
+
+impl FromStr for Method {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Method, String> {
+        Method::ALL
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
+                format!("unknown method {s:?} (one of {})", names.join(", "))
+            })
+    }
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A set of methods that always holds mean and filtered, which every run
+/// makes. Iterates in the canonical order of [`Method::ALL`]; in JSON a
+/// list of names. As many methods as the table has fit.
+///
+/// ```
+/// use pathdensity_core::config::{Method, MethodSet};
+/// let s: MethodSet = [Method::Rwmc].into_iter().collect();
+/// let v: Vec<Method> = s.iter().collect();
+/// assert_eq!(v, [Method::Mean, Method::Filtered, Method::Rwmc]);
+/// ```
+#[derive(Clone, Copy, PartialEq, Eq, Hash)]
+pub struct MethodSet([u64; WORDS]);
+
+/// Words of a [`MethodSet`]: one bit a method.
+const WORDS: usize = Method::COUNT.div_ceil(64);
+
+impl MethodSet {
+    const EMPTY: MethodSet = MethodSet([0; WORDS]);
+
+    /// Mean and filtered.
+    pub const CORE: MethodSet = MethodSet::EMPTY.with(Method::Mean).with(Method::Filtered);
+
+    /// Every method of the table.
+    pub const ALL: MethodSet = {
+        let mut s = MethodSet::EMPTY;
+        let mut i = 0;
+        while i < Method::COUNT {
+            s = s.with(TABLE[i].method);
+            i += 1;
+        }
+        s
+    };
+
+    /// What a run makes unless told otherwise: each row's `default`,
+    /// among the methods this build can make.
+    pub const DEFAULT: MethodSet = {
+        let mut s = MethodSet::CORE;
+        let mut i = 0;
+        while i < Method::COUNT {
+            if TABLE[i].default && TABLE[i].method.available() {
+                s = s.with(TABLE[i].method);
+            }
+            i += 1;
+        }
+        s
+    };
+
+    pub const fn contains(self, m: Method) -> bool {
+        let i = m as usize;
+        self.0[i / 64] & (1 << (i % 64)) != 0
+    }
+
+    /// This set without `m` (mean and filtered stay).
+    pub const fn without(self, m: Method) -> MethodSet {
+        let i = m as usize;
+        let mut words = self.0;
+        words[i / 64] &= !(1 << (i % 64));
+        MethodSet(words).with(Method::Mean).with(Method::Filtered)
+    }
+
+    /// This set and `m`.
+    pub const fn with(self, m: Method) -> MethodSet {
+        let i = m as usize;
+        let mut words = self.0;
+        words[i / 64] |= 1 << (i % 64);
+        MethodSet(words)
+    }
+
+    /// The methods in the canonical order.
+    pub fn iter(self) -> impl Iterator<Item = Method> {
+        Method::ALL.into_iter().filter(move |&m| self.contains(m))
+    }
+}
+
+impl FromIterator<Method> for MethodSet {
+    fn from_iter<I: IntoIterator<Item = Method>>(iter: I) -> MethodSet {
+        iter.into_iter().fold(MethodSet::CORE, MethodSet::with)
+    }
+}
+
+impl std::fmt::Debug for MethodSet {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.debug_list().entries(self.iter()).finish()
+    }
+}
+
+impl serde::Serialize for MethodSet {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(self.iter())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for MethodSet {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<MethodSet, D::Error> {
+        Ok(Vec::<Method>::deserialize(d)?.into_iter().collect())
+    }
+}
+
+// A method is its name in JSON, as on the command line.
+impl serde::Serialize for Method {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Method {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Method, D::Error> {
+        let name = String::deserialize(d)?;
+        name.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+/// One image a run makes: a method's, or that image denoised after it
+/// (`METHOD+oidn`). Its name ([`std::fmt::Display`], and its form in JSON)
+/// is the file name; metrics, seconds and reports are keyed by it. Ordered
+/// by name, as the report's maps always were.
+///
+/// ```
+/// use pathdensity_core::method::{ImageId, Method};
+/// let id: ImageId = "filtered+oidn".parse().unwrap();
+/// assert_eq!(id, ImageId { method: Method::Filtered, denoised: true });
+/// assert_eq!(ImageId::from(Method::Mean).to_string(), "mean");
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct ImageId {
+    pub method: Method,
+    /// Denoised by the run's `denoise` after `method`.
+    pub denoised: bool,
+}
+
+/// The suffix of a denoised image's name.
+const DENOISED: &str = "+oidn";
+
+impl From<Method> for ImageId {
+    fn from(method: Method) -> ImageId {
+        ImageId {
+            method,
+            denoised: false,
+        }
+    }
+}
+
+impl ImageId {
+    /// Every image a run can make in the canonical order: each method's
+    /// ([`Method::ALL`]), then each denoised.
+    pub fn all() -> impl Iterator<Item = ImageId> {
+        [false, true].into_iter().flat_map(|denoised| {
+            Method::ALL
+                .into_iter()
+                .map(move |method| ImageId { method, denoised })
+        })
+    }
+}
+
+impl std::fmt::Display for ImageId {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str(self.method.name())?;
+        if self.denoised {
+            f.write_str(DENOISED)?;
+        }
+        Ok(())
+    }
+}
+
+impl FromStr for ImageId {
+    type Err = String;
+    fn from_str(s: &str) -> Result<ImageId, String> {
+        let (name, denoised) = match s.strip_suffix(DENOISED) {
+            Some(name) => (name, true),
+            None => (s, false),
+        };
+        Ok(ImageId {
+            method: name.parse()?,
+            denoised,
+        })
+    }
+}
+
+impl Ord for ImageId {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        let key = |i: &ImageId| (i.method.name(), i.denoised);
+        // "a" < "a+oidn" < "a_b" by name; by (name, denoised) the same
+        // unless a name continues with a character below '+', which none does.
+        key(self).cmp(&key(other))
+    }
+}
+
+impl PartialOrd for ImageId {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl serde::Serialize for ImageId {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for ImageId {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<ImageId, D::Error> {
+        let name = String::deserialize(d)?;
+        name.parse().map_err(serde::de::Error::custom)
+    }
+}
