@@ -2,14 +2,15 @@
 //! (DeCoro, Weyrich & Rusinkiewicz, Pacific Graphics 2010).
 //!
 //! This crate is the top of the workspace: the jobs the command line runs
-//! ([`commands`]) and what they write beside the images ([`report`]: the
+//! ([`commands`]), the comparisons that read and write files ([`sweep`],
+//! [`regress`]) and what they write beside the images ([`report`]: the
 //! summary, `report.json`, `report.html`, plots, PNG previews). The
 //! pipeline itself is `pathdensity-core`, the file format
 //! `pathdensity-format`; both are re-exported here under their usual names.
 
 pub use pathdensity_core::{
-    config, density, imagespace, joint, method, metrics, pipeline, progress, quantile, recon,
-    regress, sweep, synth,
+    config, density, imagespace, joint, method, metrics, par, pipeline, progress, quantile, recon,
+    synth,
 };
 pub use pathdensity_format::{dump, image};
 
@@ -22,4 +23,6 @@ pub mod io {
 
 pub mod cli;
 pub mod commands;
+pub mod regress;
 pub mod report;
+pub mod sweep;

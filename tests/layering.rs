@@ -92,7 +92,6 @@ const CORE_LAYERS: &[&[&str]] = &[
     &["method"],
     &["config"],
     &["pipeline"],
-    &["sweep", "regress"],
 ];
 
 fn layer_of(module: &str) -> Option<usize> {

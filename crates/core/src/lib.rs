@@ -5,15 +5,10 @@
 //! `pathdensity-format`) → [`joint`] (the joint image–colour–time space) →
 //! [`density`] (the filter) → [`recon`] and [`imagespace`] (images) →
 //! [`metrics`]. [`config`] is the one configuration of a run and
-//! [`pipeline`] runs it with no file I/O; [`sweep`] and [`regress`] are
-//! built on it. No command line, plots or HTML here.
+//! [`pipeline`] runs it with no file I/O. No files, command line, plots or
+//! HTML here: sweeps, fixtures and reports are the top package's.
 
 pub use pathdensity_format::{dump, image};
-
-/// Files in and out (from `pathdensity-format`).
-pub mod io {
-    pub use pathdensity_format::{atomic, exr, guard};
-}
 
 pub mod config;
 pub mod density;
@@ -26,6 +21,5 @@ pub mod pipeline;
 pub mod progress;
 pub mod quantile;
 pub mod recon;
-pub mod regress;
-pub mod sweep;
+
 pub mod synth;
