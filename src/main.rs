@@ -91,6 +91,9 @@ struct ConfigArgs {
     /// clamp: the largest RGB component a sample may keep.
     #[arg(long, default_value_t = D.clamp)]
     clamp: f64,
+    /// guided: z of the accepted samples' confidence interval.
+    #[arg(long, default_value_t = D.guide_z)]
+    guide_z: f64,
     /// Exposure of the PNG previews and the display metrics.
     #[arg(long, default_value_t = D.exposure)]
     exposure: f64,
@@ -132,6 +135,7 @@ impl From<ConfigArgs> for FilterConfig {
             rwmc_min_luminance: a.rwmc_min_luminance,
             energy_sigma: a.energy_sigma,
             clamp: a.clamp,
+            guide_z: a.guide_z,
             exposure: a.exposure,
             denoise: a.denoise,
             color_space: a.color_space,

@@ -74,6 +74,8 @@ fn check_report(browser: &Path, frames: u32) {
     let out = dir.path().join("out");
     let mut o = FilterOptions::new(&dump, &out);
     o.reference = Some(dir.path().join("ref.exr"));
+    // Not 1: an exposure applied twice would go unseen at 1.
+    o.config.exposure = 0.7;
     filter(&o).unwrap();
     let page = out.join("report.html");
     let html = std::fs::read_to_string(&page).unwrap();
@@ -107,7 +109,20 @@ fn check_report(browser: &Path, frames: u32) {
             "console error: {line}"
         );
     }
-    // Every method and the reference are on the page.
+    // Every method and the reference are in the viewer, the recommended
+    // image first.
+    let data = html
+        .split("<script type=\"application/json\" id=\"viewer-data\">")
+        .nth(1)
+        .and_then(|s| s.split("</script>").next())
+        .expect("the viewer's data");
+    let data: serde_json::Value = serde_json::from_str(data).unwrap();
+    let names: Vec<&str> = data["images"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| i["name"].as_str().unwrap())
+        .collect();
     for name in [
         "reference",
         "mean",
@@ -116,10 +131,48 @@ fn check_report(browser: &Path, frames: u32) {
         "trimmed",
         "bilateral",
         "median3",
+        "guided",
+        "rejected",
     ] {
+        assert!(names.contains(&name), "{name} missing from {names:?}");
+    }
+    assert_eq!(names[0], "guided");
+    assert_eq!(data["recommended"], 0);
+    assert_eq!(
+        names[data["reference"].as_u64().unwrap() as usize],
+        "reference"
+    );
+    assert!(dom.contains("data-name=\"sigma\""), "the σ map");
+
+    // The viewer driven by its keys (tests/browser/viewer_check.js): two
+    // methods differ, +1 stop doubles a linear value before the display
+    // transform, the reference against itself is zero in every error view,
+    // frames and zoom.
+    let check = include_str!("browser/viewer_check.js");
+    let tested = out.join("report_tested.html");
+    std::fs::write(
+        &tested,
+        html.replace("</body>", &format!("<script>{check}</script>\n</body>")),
+    )
+    .unwrap();
+    let mut attempt = 0;
+    let dom = loop {
+        attempt += 1;
+        let (dom, _) = headless(browser, &tested, &["--dump-dom"]);
+        if dom.contains("data-viewer-test=") || attempt == 3 {
+            break dom;
+        }
+    };
+    let result = dom
+        .split("data-viewer-test=\"")
+        .nth(1)
+        .and_then(|s| s.split('"').next())
+        .unwrap_or("(no result)");
+    assert_eq!(result, "pass", "the viewer's check after {attempt} load(s)");
+    if frames == 1 {
         assert!(
-            dom.contains(&format!("data-name=\"{name}\"")),
-            "{name} missing"
+            dom.contains("data-viewer-skipped"),
+            "frames are skipped for a still"
         );
     }
     assert!(dom.contains("<svg"), "slice plot inlined");

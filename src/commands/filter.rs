@@ -18,6 +18,7 @@ use crate::progress::{Progress, Silent};
 use crate::recon::Image;
 use crate::report::html::{self, Assets};
 use crate::report::plots;
+use crate::report::viewer::{self, Kind, Shown};
 use crate::report::{EnergyRemoved, FilterReport, Provenance, Timing};
 use rayon::prelude::*;
 
@@ -200,6 +201,44 @@ struct Clock {
     open_seconds: f64,
 }
 
+/// The viewer's images in display order: the recommended one, the
+/// reference, the other images as the run made them, and `rejected`.
+fn shown<'a>(
+    report: &FilterReport,
+    run: &'a pipeline::Run,
+    reference: Option<&'a Image>,
+) -> Vec<Shown<'a>> {
+    let named = |name: String, kind, image| Shown {
+        caption: html::caption(report, &name),
+        name,
+        kind,
+        image,
+    };
+    let recommended = run
+        .images
+        .iter()
+        .find(|e| Some(e.id()) == report.recommended);
+    let mut shown: Vec<Shown> = recommended
+        .map(|e| named(e.id().to_string(), Kind::Recommended, &e.image))
+        .into_iter()
+        .collect();
+    shown.extend(reference.map(|r| named("reference".into(), Kind::Reference, r)));
+    for e in run
+        .images
+        .iter()
+        .filter(|e| Some(e.id()) != report.recommended)
+    {
+        let kind = if e.denoised {
+            Kind::Denoised
+        } else {
+            Kind::Method
+        };
+        shown.push(named(e.id().to_string(), kind, &e.image));
+    }
+    shown.push(named("rejected".into(), Kind::Diagnostic, &run.removed));
+    shown
+}
+
 /// Writes every output of `run` into `dir` and returns the report.
 fn write_outputs(
     opts: &FilterOptions,
@@ -288,8 +327,7 @@ fn write_outputs(
     if opts.html {
         let exposure = opts.config.exposure;
         let mut assets = Assets {
-            images: Vec::new(),
-            reference: None,
+            viewer: String::new(),
             sigma: None,
             slice_svg: None,
         };
@@ -312,7 +350,7 @@ fn write_outputs(
                 .collect()
         };
         if let Some(r) = &reference {
-            assets.reference = Some(previews("reference", tone(r), &mut outputs)?);
+            previews("reference", tone(r), &mut outputs)?;
         }
         // The slice plot (one thread) beside the previews.
         let (pngs, svg) = pool.install(|| {
@@ -330,13 +368,11 @@ fn write_outputs(
                 || slice_row.map(|row| plots::slice_svg(records, h, &run.decisions, row)),
             )
         });
-        let pngs = pngs?;
-        for (name, frames, files) in pngs {
-            assets.images.push((name, frames));
+        for (_, _, files) in pngs? {
             outputs.extend(files);
         }
-        let frames = previews("rejected", tone(&run.removed), &mut outputs)?;
-        assets.images.push(("rejected".to_string(), frames));
+        previews("rejected", tone(&run.removed), &mut outputs)?;
+        assets.viewer = viewer::data(&shown(&report, run, reference), exposure);
         if let (Some(img), Some(scale)) = (&run.sigma_image, sigma_scale) {
             let frames = (0..img.frames)
                 .map(|f| plots::sigma_png(img, f, scale))

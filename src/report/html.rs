@@ -1,21 +1,43 @@
-//! `report.html`: one self-contained page (images inlined as data URIs, no
-//! network) with every method beside the reference, the metric table, a
-//! magnifier that follows the pointer on all images at once, the σ map and
-//! the slice plot. The page sets `data-status` on `<body>` to `ok` once
-//! every image has decoded, or to `error: …` — the browser test reads it.
+//! `report.html`: one self-contained page (no network): the HDR viewer
+//! ([`super::viewer`]) with the recommended image beside the reference,
+//! every other image a key away, the metric table, the σ map (with a
+//! magnifier) and the slice plot. The page sets `data-status` on `<body>`
+//! to `ok` once the viewer has drawn and every image has decoded, or to
+//! `error: …` — the browser test reads it.
 
 use base64::Engine;
 
 use super::FilterReport;
 use super::plots::SigmaScale;
+use super::viewer::{SCRIPT as VIEWER_SCRIPT, STYLE as VIEWER_STYLE};
 
-/// The pictures a report shows; each image has one PNG per frame.
+/// What a report shows besides its numbers.
 pub struct Assets {
-    /// (name, PNG bytes per frame), in display order.
-    pub images: Vec<(String, Vec<Vec<u8>>)>,
-    pub reference: Option<Vec<Vec<u8>>>,
+    /// The viewer's JSON ([`super::viewer::data`]).
+    pub viewer: String,
+    /// The σ map's PNG per frame.
     pub sigma: Option<(Vec<Vec<u8>>, SigmaScale)>,
     pub slice_svg: Option<String>,
+}
+
+/// What the viewer says under `name`'s image.
+pub fn caption(report: &FilterReport, name: &str) -> String {
+    let metrics = name.parse().ok().and_then(|id| report.metrics.get(&id));
+    match metrics {
+        Some(m) => format!(
+            "RMS {:.4}, RMS display {:.4}, FLIP {:.4}, HDR-FLIP {:.4}, energy {:.3}",
+            m.pooled.rms,
+            m.pooled.rms_display,
+            m.pooled.flip,
+            m.pooled.hdr_flip,
+            m.pooled.energy_ratio
+        ),
+        None if name == "rejected" => format!(
+            "mean − filtered: what the filter took out, {:.2}% of the mean's energy",
+            100.0 * report.energy_removed.fraction_of_mean
+        ),
+        None => String::new(),
+    }
 }
 
 fn data_uri(png: &[u8]) -> String {
@@ -110,23 +132,6 @@ pub fn render(report: &FilterReport, assets: &Assets) -> String {
             c = escape(caption)
         );
     };
-    if let Some(r) = &assets.reference {
-        add("reference", "reference", r, "");
-    }
-    for (name, frames) in &assets.images {
-        let caption = match name.parse().ok().and_then(|id| report.metrics.get(&id)) {
-            Some(m) => format!(
-                "{name}: RMS {:.4}, RMS display {:.4}, FLIP {:.4}",
-                m.pooled.rms, m.pooled.rms_display, m.pooled.flip
-            ),
-            None if name == "rejected" => format!(
-                "rejected: mean − filtered, {:.2}% of the mean's energy",
-                100.0 * report.energy_removed.fraction_of_mean
-            ),
-            None => name.clone(),
-        };
-        add(name, &caption, frames, "");
-    }
     if let Some((frames, s)) = &assets.sigma {
         let bar = format!(
             "<div class=\"bar\"><span>σ {:.3} (red)</span><span>log scale</span><span>σ {:.3} (blue)</span></div>",
@@ -156,7 +161,7 @@ pub fn render(report: &FilterReport, assets: &Assets) -> String {
     }
     let slider = if h.frames > 1 {
         format!(
-            "<p>frame <input id=\"frame\" type=\"range\" min=\"0\" max=\"{}\" value=\"0\"> <span id=\"frame-label\">0</span></p>",
+            "<p>σ map frame <input id=\"frame\" type=\"range\" min=\"0\" max=\"{}\" value=\"0\"> <span id=\"frame-label\">0</span></p>",
             h.frames - 1
         )
     } else {
@@ -171,12 +176,15 @@ pub fn render(report: &FilterReport, assets: &Assets) -> String {
         r#"<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <title>pathdensity report: {title}</title>
-<style>:root {{ --w: {css_w}; }} {STYLE}</style></head>
+<style>:root {{ --w: {css_w}; }} {STYLE} {VIEWER_STYLE}</style></head>
 <body>
 <h1>pathdensity report: {title}</h1>
-<p>{w} × {hh} × {frames} frame(s), {count} samples ({scene}); k = {k}, σ_image = {si}, σ_color = {sc}, white = {white}; previews at exposure {exposure}, sRGB. Move the pointer over any image to magnify all of them at the same place.</p>
+<p>{w} × {hh} × {frames} frame(s), {count} samples ({scene}); k = {k}, σ_image = {si}, σ_color = {sc}, white = {white}; exposure {exposure}, sRGB.</p>
 <p>{counts}</p>
 {notes}
+<div id="viewer"></div>
+<script type="application/json" id="viewer-data">{viewer}</script>
+<script>{VIEWER_SCRIPT}</script>
 {table}
 {slider}
 <div class="grid">
@@ -205,6 +213,7 @@ pub fn render(report: &FilterReport, assets: &Assets) -> String {
             .map(|n| format!("<p class=\"note\">{}</p>\n", escape(n)))
             .collect::<String>(),
         frames_js = frames_js.join(",\n"),
+        viewer = assets.viewer,
     )
 }
 

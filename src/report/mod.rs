@@ -13,6 +13,7 @@ use crate::recon::{Image, energy};
 pub mod html;
 pub mod plots;
 pub mod sweep;
+pub mod viewer;
 
 use plots::SigmaScale;
 

@@ -142,6 +142,8 @@ pub struct FilterConfig {
     pub energy_sigma: f64,
     /// clamp: the largest RGB component a sample may keep (C).
     pub clamp: f64,
+    /// guided: z of the accepted samples' confidence interval.
+    pub guide_z: f64,
     /// Exposure of the display transform (RMS_display, previews).
     pub exposure: f64,
     /// Also denoise every selected method's image (`METHOD+oidn`).
@@ -179,6 +181,7 @@ impl FilterConfig {
         rwmc_min_luminance: RwmcParams::DEFAULT.min_luminance,
         energy_sigma: 8.0,
         clamp: 10.0,
+        guide_z: crate::recon::guided::Z,
         exposure: 1.0,
         denoise: Denoise::None,
         color_space: JointSpace::DEFAULT.color,
@@ -218,6 +221,7 @@ impl FilterConfig {
             ("rwmc_start", self.rwmc_start),
             ("rwmc_kappa", self.rwmc_kappa),
             ("clamp", self.clamp),
+            ("guide_z", self.guide_z),
         ] {
             if !positive(v) {
                 return bad(field, format!("must be a positive finite number, got {v}"));

@@ -50,6 +50,14 @@ pub enum Method {
     /// confidence interval of the pixel's mean
     /// ([`crate::recon::confidence`]; only with the `oidn` feature).
     OidnCi,
+    /// The density-guided image ([`crate::recon::guided`]): a bilateral
+    /// filter of filtered_energy where the pixel is noise, the accepted
+    /// samples' mean where they vouch for more, never above what they
+    /// allow. The pure-Rust build's recommended image.
+    Guided,
+    /// The same with OIDN's image of the mean as the denoiser (only with
+    /// the `oidn` feature).
+    GuidedOidn,
 }
 
 /// What an image is made from besides the samples.
@@ -96,15 +104,18 @@ pub enum Piece {
     Interval,
     /// OIDN's image of the mean.
     OidnMean,
+    /// Every pixel's confidence interval of its accepted samples.
+    AcceptedInterval,
 }
 
 impl Piece {
-    pub const ALL: [Piece; 5] = [
+    pub const ALL: [Piece; 6] = [
         Piece::Robust,
         Piece::Mon,
         Piece::FilteredEnergy,
         Piece::Interval,
         Piece::OidnMean,
+        Piece::AcceptedInterval,
     ];
 
     /// The shared pieces `method`'s image is made from (a test checks
@@ -179,7 +190,7 @@ pub struct Row {
 
 /// Every method, in the canonical order: `TABLE[m as usize].method == m`
 /// (checked when the crate compiles).
-pub const TABLE: [Row; 15] = [
+pub const TABLE: &[Row] = &[
     Row {
         method: Method::Mean,
         name: "mean",
@@ -301,7 +312,7 @@ pub const TABLE: [Row; 15] = [
         pieces: &[Piece::FilteredEnergy, Piece::Interval],
         role: Role::Outside,
         default: true,
-        recommend: Some(1),
+        recommend: Some(3),
     },
     Row {
         method: Method::Oidn,
@@ -319,6 +330,34 @@ pub const TABLE: [Row; 15] = [
         needs: OIDN,
         pieces: &[Piece::OidnMean, Piece::Interval],
         role: Role::EqualTime,
+        default: true,
+        recommend: Some(2),
+    },
+    Row {
+        method: Method::Guided,
+        name: "guided",
+        needs: Needs {
+            white: true,
+            ..DECISIONS
+        },
+        pieces: &[
+            Piece::FilteredEnergy,
+            Piece::Interval,
+            Piece::AcceptedInterval,
+        ],
+        role: Role::Outside,
+        default: true,
+        recommend: Some(1),
+    },
+    Row {
+        method: Method::GuidedOidn,
+        name: "guided_oidn",
+        needs: Needs {
+            oidn: true,
+            ..DECISIONS
+        },
+        pieces: &[Piece::OidnMean, Piece::Interval, Piece::AcceptedInterval],
+        role: Role::Outside,
         default: true,
         recommend: Some(0),
     },

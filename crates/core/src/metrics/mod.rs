@@ -88,25 +88,56 @@ pub fn flip_means(
     exposure: f64,
 ) -> Vec<(f64, f64)> {
     let (w, h) = (reference.width, reference.height);
-    let written = |px: &[[f64; 3]]| -> Vec<[f32; 3]> { px.iter().map(|p| p.map(stored)).collect() };
-    let shown = |px: &[[f32; 3]]| -> Vec<[f32; 3]> {
-        px.iter()
-            .map(|p| p.map(|v| (v as f64 * exposure).clamp(0.0, 1.0) as f32))
-            .collect()
-    };
-    let r: Vec<[f32; 3]> = reference
-        .frame(frame)
-        .iter()
-        .map(|p| p.map(|v| v as f32))
-        .collect();
+    let r = reference_pixels(reference, frame);
     let linear: Vec<Vec<[f32; 3]>> = images.iter().map(|i| written(i.frame(frame))).collect();
-    let displayed: Vec<Vec<[f32; 3]>> = linear.iter().map(|i| shown(i)).collect();
-    let ldr = flip::ldr_many(&shown(&r), &slices(&displayed), w, h, flip::PPD);
+    let ldr = ldr_maps_of(&linear, &r, w, h, exposure);
     let hdr = flip::hdr_many(&r, &slices(&linear), w, h, flip::PPD);
     ldr.iter()
         .zip(&hdr)
         .map(|(l, h)| (flip::mean(l), flip::mean(h)))
         .collect()
+}
+
+/// Per pixel of `frame`, the LDR-ꟻLIP error of each of `images` against
+/// `reference` (the maps whose means [`flip_means`] reports), in [0, 1].
+pub fn ldr_flip_maps(
+    images: &[&Image],
+    reference: &Image,
+    frame: usize,
+    exposure: f64,
+) -> Vec<Vec<f32>> {
+    let linear: Vec<Vec<[f32; 3]>> = images.iter().map(|i| written(i.frame(frame))).collect();
+    let r = reference_pixels(reference, frame);
+    ldr_maps_of(&linear, &r, reference.width, reference.height, exposure)
+}
+
+/// The pixels as the EXR stores them.
+fn written(px: &[[f64; 3]]) -> Vec<[f32; 3]> {
+    px.iter().map(|p| p.map(stored)).collect()
+}
+
+fn reference_pixels(reference: &Image, frame: usize) -> Vec<[f32; 3]> {
+    reference
+        .frame(frame)
+        .iter()
+        .map(|p| p.map(|v| v as f32))
+        .collect()
+}
+
+fn ldr_maps_of(
+    linear: &[Vec<[f32; 3]>],
+    reference: &[[f32; 3]],
+    w: usize,
+    h: usize,
+    exposure: f64,
+) -> Vec<Vec<f32>> {
+    let shown = |px: &[[f32; 3]]| -> Vec<[f32; 3]> {
+        px.iter()
+            .map(|p| p.map(|v| (v as f64 * exposure).clamp(0.0, 1.0) as f32))
+            .collect()
+    };
+    let displayed: Vec<Vec<[f32; 3]>> = linear.iter().map(|i| shown(i)).collect();
+    flip::ldr_many(&shown(reference), &slices(&displayed), w, h, flip::PPD)
 }
 
 fn slices(v: &[Vec<[f32; 3]>]) -> Vec<&[[f32; 3]]> {

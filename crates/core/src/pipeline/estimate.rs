@@ -16,6 +16,7 @@ use std::sync::OnceLock;
 use std::time::Instant;
 
 use crate::config::FilterConfig;
+use crate::density::Decision;
 use crate::dump::{Header, Record};
 use crate::imagespace;
 use crate::method::Method;
@@ -25,7 +26,7 @@ use crate::recon::confidence::{self, Interval};
 use crate::recon::groups::PixelGroups;
 use crate::recon::mon::{self, MonImages};
 use crate::recon::robust::{self, RobustImages};
-use crate::recon::{Image, Reconstruction, clamp, energy, rwmc};
+use crate::recon::{Image, Reconstruction, clamp, energy, guided, rwmc};
 
 /// The mean and filtered images and what the image-space methods need.
 pub struct Core {
@@ -111,6 +112,10 @@ pub struct Estimators<'s, 'a> {
     /// OIDN's image of the mean (`oidn`, and `oidn_ci` starts from it).
     oidn_mean: OnceLock<Result<(Image, f64), String>>,
     filtered_energy: OnceLock<(Image, f64)>,
+    /// The filter's decisions, one byte per record ([`Self::with_decisions`]).
+    decisions: Option<&'s [u8]>,
+    /// Every pixel's confidence interval of its accepted samples.
+    accepted_interval: OnceLock<(Interval, f64)>,
 }
 
 impl<'s, 'a> Estimators<'s, 'a> {
@@ -142,6 +147,17 @@ impl<'s, 'a> Estimators<'s, 'a> {
             mon: OnceLock::new(),
             oidn_mean: OnceLock::new(),
             filtered_energy: OnceLock::new(),
+            decisions: None,
+            accepted_interval: OnceLock::new(),
+        }
+    }
+
+    /// The same estimators with the filter's decisions (one byte per
+    /// record), which the guided images read sample by sample.
+    pub fn with_decisions(self, decisions: &'s [u8]) -> Estimators<'s, 'a> {
+        Estimators {
+            decisions: Some(decisions),
+            ..self
         }
     }
 
@@ -178,6 +194,9 @@ impl<'s, 'a> Estimators<'s, 'a> {
                     // An error stays in its cell, for the image that needs it.
                     let _ = self.oidn_mean();
                 }
+                Piece::AcceptedInterval => {
+                    self.accepted_interval();
+                }
             });
     }
 
@@ -190,6 +209,10 @@ impl<'s, 'a> Estimators<'s, 'a> {
                 let (denoised, s) = self.oidn_mean()?;
                 Ok(self.bounded(denoised, *s))
             }
+            Method::GuidedOidn => {
+                let (denoised, s) = self.oidn_mean()?;
+                Ok(self.guided(denoised, *s))
+            }
             _ => Ok(self.exact(method)),
         }
     }
@@ -200,6 +223,35 @@ impl<'s, 'a> Estimators<'s, 'a> {
         let (ci, ci_s) = self.shared.interval();
         let (out, t) = timed(|| ci.bound(img));
         (out, seconds + ci_s + t)
+    }
+
+    /// `img` (made in `seconds`) steered by the accepted samples
+    /// ([`guided::guide`]), and the seconds from the dump.
+    fn guided(&self, img: &Image, seconds: f64) -> (Image, f64) {
+        let (accepted, accepted_s) = self.accepted_interval();
+        let (all, all_s) = self.shared.interval();
+        let (out, t) = timed(|| guided::guide(img, accepted, all));
+        (
+            out,
+            seconds.max(self.core.replay_seconds) + accepted_s + all_s + t,
+        )
+    }
+
+    /// The accepted samples' intervals, made once, and their seconds.
+    fn accepted_interval(&self) -> &(Interval, f64) {
+        let decisions = self
+            .decisions
+            .expect("an image that needs the decisions is made with them");
+        self.accepted_interval.get_or_init(|| {
+            timed(|| {
+                confidence::interval_of(
+                    self.shared.records,
+                    self.shared.header,
+                    self.config.guide_z,
+                    |i| Decision::accepted(decisions[i]),
+                )
+            })
+        })
     }
 
     /// OIDN's image of the mean, made once, and the seconds from the dump.
@@ -277,7 +329,16 @@ impl<'s, 'a> Estimators<'s, 'a> {
                 });
                 self.bounded(&smoothed, fe_s + t)
             }
-            Method::Oidn | Method::OidnCi => unreachable!("OIDN goes through Estimators::image"),
+            Method::Guided => {
+                let (fe, fe_s) = self.filtered_energy();
+                let (smoothed, t) = timed(|| {
+                    imagespace::bilateral(fe, &rec.occupancy, c.bilateral(), self.white())
+                });
+                self.guided(&smoothed, fe_s + t)
+            }
+            Method::Oidn | Method::OidnCi | Method::GuidedOidn => {
+                unreachable!("OIDN goes through Estimators::image")
+            }
             Method::FilteredEnergy => {
                 let (fe, s) = self.filtered_energy();
                 (fe.clone(), *s)
@@ -354,6 +415,7 @@ mod tests {
                 self.filtered_energy.get().is_some(),
                 self.shared.interval.get().is_some(),
                 self.oidn_mean.get().is_some(),
+                self.accepted_interval.get().is_some(),
             ];
             Piece::ALL
                 .into_iter()
@@ -385,7 +447,9 @@ mod tests {
         let core = Core::new(rec, 0.0, 0.0);
         for method in Method::ALL {
             let shared = Shared::new(&records, &h);
-            let estimators = Estimators::new(&shared, &config, 1.0, &core);
+            let decisions = vec![0u8; records.len()];
+            let estimators =
+                Estimators::new(&shared, &config, 1.0, &core).with_decisions(&decisions);
             let made = estimators.image(method);
             let mut want = Piece::of(method).to_vec();
             want.sort_by_key(|p| Piece::ALL.iter().position(|q| q == p));

@@ -308,7 +308,11 @@ pub fn run(
                 let rec = Reconstruction::new(records, header, filter, mean, occupancy, accepted);
                 let seconds = mean_seconds + t.elapsed().as_secs_f64();
                 let core = Core::new(rec, seconds, replay_seconds);
-                let late = images(&Estimators::new(&shared, config, white, &core), &decided);
+                let late = images(
+                    &Estimators::new(&shared, config, white, &core)
+                        .with_decisions(&result.decisions),
+                    &decided,
+                );
                 (core, late)
             },
             || {
@@ -432,8 +436,11 @@ mod tests {
         let decided = reconstruct(&records, &h, &config, accepted, 0.0);
         let undecided = reconstruct(&records, &h, &config, |_| true, 0.0);
         let shared = Shared::new(&records, &h);
-        let truth = Estimators::new(&shared, &config, white, &decided);
-        let blind = Estimators::new(&shared, &config, white, &undecided);
+        let truth =
+            Estimators::new(&shared, &config, white, &decided).with_decisions(&result.decisions);
+        // Every sample accepted, as before the replay.
+        let all = vec![Decision::AcceptedStreaming as u8; records.len()];
+        let blind = Estimators::new(&shared, &config, white, &undecided).with_decisions(&all);
         for threads in [1, 2] {
             let options = RunOptions {
                 threads,

@@ -34,6 +34,8 @@ pub struct Interval {
     /// and no compatible neighbour has two (at 1 spp the interval bounds
     /// nothing).
     pub half_width: Image,
+    /// The samples behind each pixel's interval.
+    pub count: Vec<u32>,
 }
 
 impl Interval {
@@ -85,10 +87,21 @@ impl Moments {
 
 /// The confidence interval of every pixel's mean, at `z` standard errors.
 pub fn interval(records: &[Record], h: &Header, z: f64) -> Interval {
+    interval_of(records, h, z, |_| true)
+}
+
+/// [`interval`] of the valid samples `keep(i)` picks (record i): the
+/// accepted ones, for [`super::guided`].
+pub fn interval_of(
+    records: &[Record],
+    h: &Header,
+    z: f64,
+    keep: impl Fn(usize) -> bool,
+) -> Interval {
     let (w, ht) = (h.width as usize, h.height as usize);
     let mut moments = vec![Moments::default(); h.pixels() * h.frames as usize];
-    for r in records {
-        if r.validity(h) == Validity::Valid {
+    for (i, r) in records.iter().enumerate() {
+        if r.validity(h) == Validity::Valid && keep(i) {
             moments[r.pixel_index(h)].add([r.r as f64, r.g as f64, r.b as f64]);
         }
     }
@@ -138,7 +151,12 @@ pub fn interval(records: &[Record], h: &Header, z: f64) -> Interval {
             z * (s2 / m.n as f64).sqrt()
         });
     }
-    Interval { centre, half_width }
+    let count = moments.iter().map(|m| m.n).collect();
+    Interval {
+        centre,
+        half_width,
+        count,
+    }
 }
 
 #[cfg(test)]

@@ -6,6 +6,7 @@ pub mod clamp;
 pub mod confidence;
 pub mod energy;
 pub mod groups;
+pub mod guided;
 pub mod median;
 pub mod mon;
 pub mod robust;

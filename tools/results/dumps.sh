@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# The dumps the fidelity tables are measured on: our renderer's scenes
+# (SCENES) and the Mitsuba exporter's (MITSUBA_SCENES) at SIZE² (default
+# 128) pixels and each of SPPS (default "16 64 256") spp, seed 1,
+# pass-major, with one reference per scene (REF_SPP, default 1024, for ours;
+# MI_REF_SPP, default 4096, for Mitsuba's, rendered by Mitsuba itself).
+# Writes OUT/RENDERER-SCENE-SPP.pds and OUT/RENDERER-SCENE-ref.exr; a file
+# already there is kept. Needs Mitsuba (bash tools/mitsuba/setup.sh).
+#
+#   bash tools/results/dumps.sh OUT
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+out=${1:?usage: dumps.sh OUT}
+threads=${THREADS:-2}
+size=${SIZE:-128}
+spps=${SPPS:-"16 64 256"}
+ours=${SCENES:-"glossy-room two-lights indirect-room sky"}
+theirs=${MITSUBA_SCENES:-"caustic glossy-highlight indirect-room"}
+ref_spp=${REF_SPP:-1024}
+mi_ref_spp=${MI_REF_SPP:-4096}
+py=tools/mitsuba/.venv/bin/python
+mkdir -p "$out"
+cargo build --release --quiet --bin render
+for s in $ours; do
+    ref="$out/ours-$s-ref.exr"
+    for spp in $spps; do
+        dump="$out/ours-$s-$spp.pds"
+        [ -f "$dump" ] && continue
+        refargs=()
+        [ -f "$ref" ] || refargs=(--reference-spp "$ref_spp" --reference-out "$ref")
+        ./target/release/render --scene "$s" --width "$size" --height "$size" --spp "$spp" \
+            --order pass --threads "$threads" -o "$dump" "${refargs[@]}" > /dev/null
+        echo "$dump" >&2
+    done
+done
+for s in $theirs; do
+    ref="$out/mitsuba-$s-ref.exr"
+    for spp in $spps; do
+        dump="$out/mitsuba-$s-$spp.pds"
+        [ -f "$dump" ] && continue
+        refargs=()
+        [ -f "$ref" ] || refargs=(--reference-spp "$mi_ref_spp" --reference-out "$ref")
+        $py tools/mitsuba/export.py "tools/mitsuba/scenes/$s.xml" -o "$dump" \
+            --size "${size}x${size}" --spp "$spp" --seed 1 --quiet "${refargs[@]}"
+        echo "$dump" >&2
+    done
+done
