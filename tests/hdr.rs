@@ -313,9 +313,9 @@ fn the_recommended_image_keeps_the_highlight_and_drops_the_fireflies() {
         .unwrap();
         assert_eq!(
             pipeline::recommended(&run.images),
-            Some(Method::FilteredEnergyBilateralCi.into())
+            Some(Method::Guided.into())
         );
-        let img = run.image(Method::FilteredEnergyBilateralCi).unwrap();
+        let img = run.image(Method::Guided).unwrap();
         let mean = run.image(Method::Mean).unwrap();
         let blue = |i: usize| img.data[i][2];
         let hp = pixel(&recs[hl[0]]);

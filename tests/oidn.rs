@@ -214,10 +214,10 @@ fn oidn_images_equal_the_reference_librarys_and_runs_repeat() {
     }
 }
 
-/// In a build with OIDN the default run makes oidn_ci and recommends it:
-/// first row of the table, `"recommended"` in report.json.
+/// In a build with OIDN the default run makes guided_oidn and recommends
+/// it: first row of the table, `"recommended"` in report.json.
 #[test]
-fn oidn_builds_recommend_oidn_ci() {
+fn oidn_builds_recommend_guided_oidn() {
     let Some((_, dir)) = oidn() else { return };
     cargo(&dir, &["build", "--bin", "pathdensity"]);
     let bin = Path::new(ROOT).join("target/oidn/release/pathdensity");
@@ -241,10 +241,10 @@ fn oidn_builds_recommend_oidn_ci() {
         .skip_while(|l| !l.trim_start().starts_with("image"))
         .nth(1)
         .unwrap_or_else(|| panic!("no table in\n{table}"));
-    assert!(first.contains("oidn_ci (use)"), "{table}");
+    assert!(first.contains("guided_oidn (use)"), "{table}");
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
-    assert_eq!(report["recommended"], "oidn_ci");
+    assert_eq!(report["recommended"], "guided_oidn");
     assert!(
         !out.join("oidn.exr").exists(),
         "plain oidn is not a default"
