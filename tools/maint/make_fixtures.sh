@@ -26,7 +26,7 @@ pd=target/release/pathdensity
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
-methods='["mean", "filtered", "median", "trimmed", "bilateral", "median3", "filtered_bilateral", "mon", "gmon", "rwmc", "filtered_energy", "clamp", "filtered_energy_bilateral_ci", "guided"]'
+methods='["mean", "filtered", "median", "trimmed", "bilateral", "median3", "filtered_bilateral", "mon", "gmon", "rwmc", "filtered_energy", "clamp", "filtered_energy_bilateral_ci", "guided", "statmc"]'
 paper='"k": 10, "sigma_color": 100.0, "color_space": "cielab", "final_pass": "stored", "white": 1.0'
 
 manifest() { # DIR DESCRIPTION REFERENCE

@@ -50,14 +50,17 @@ pub enum Method {
     /// confidence interval of the pixel's mean
     /// ([`crate::recon::confidence`]; only with the `oidn` feature).
     OidnCi,
-    /// The density-guided image ([`crate::recon::guided`]): a bilateral
-    /// filter of filtered_energy where the pixel is noise, the accepted
-    /// samples' mean where they vouch for more, never above what they
-    /// allow. The pure-Rust build's recommended image.
+    /// The density-guided image ([`crate::recon::guided`]): statmc with
+    /// the removed energy spread back where the pixel is noise, the
+    /// accepted samples' mean where they vouch for more, never above what
+    /// all its samples allow. The pure-Rust build's recommended image.
     Guided,
     /// The same with OIDN's image of the mean as the denoiser (only with
     /// the `oidn` feature).
     GuidedOidn,
+    /// The statistical denoiser ([`crate::recon::statmc`], Sakai et al.
+    /// 2024) on the accepted samples.
+    Statmc,
 }
 
 /// What an image is made from besides the samples.
@@ -106,16 +109,19 @@ pub enum Piece {
     OidnMean,
     /// Every pixel's confidence interval of its accepted samples.
     AcceptedInterval,
+    /// statmc's image.
+    Statmc,
 }
 
 impl Piece {
-    pub const ALL: [Piece; 6] = [
+    pub const ALL: [Piece; 7] = [
         Piece::Robust,
         Piece::Mon,
         Piece::FilteredEnergy,
         Piece::Interval,
         Piece::OidnMean,
         Piece::AcceptedInterval,
+        Piece::Statmc,
     ];
 
     /// The shared pieces `method`'s image is made from (a test checks
@@ -336,15 +342,8 @@ pub const TABLE: &[Row] = &[
     Row {
         method: Method::Guided,
         name: "guided",
-        needs: Needs {
-            white: true,
-            ..DECISIONS
-        },
-        pieces: &[
-            Piece::FilteredEnergy,
-            Piece::Interval,
-            Piece::AcceptedInterval,
-        ],
+        needs: DECISIONS,
+        pieces: &[Piece::Statmc, Piece::Interval, Piece::AcceptedInterval],
         role: Role::Outside,
         default: true,
         recommend: Some(1),
@@ -360,6 +359,15 @@ pub const TABLE: &[Row] = &[
         role: Role::Outside,
         default: true,
         recommend: Some(0),
+    },
+    Row {
+        method: Method::Statmc,
+        name: "statmc",
+        needs: DECISIONS,
+        pieces: &[Piece::Statmc],
+        role: Role::Outside,
+        default: true,
+        recommend: None,
     },
 ];
 

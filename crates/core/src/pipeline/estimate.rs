@@ -26,7 +26,7 @@ use crate::recon::confidence::{self, Interval};
 use crate::recon::groups::PixelGroups;
 use crate::recon::mon::{self, MonImages};
 use crate::recon::robust::{self, RobustImages};
-use crate::recon::{Image, Reconstruction, clamp, energy, guided, rwmc};
+use crate::recon::{Image, Reconstruction, clamp, energy, guided, rwmc, statmc};
 
 /// The mean and filtered images and what the image-space methods need.
 pub struct Core {
@@ -116,6 +116,7 @@ pub struct Estimators<'s, 'a> {
     decisions: Option<&'s [u8]>,
     /// Every pixel's confidence interval of its accepted samples.
     accepted_interval: OnceLock<(Interval, f64)>,
+    statmc: OnceLock<(Image, f64)>,
 }
 
 impl<'s, 'a> Estimators<'s, 'a> {
@@ -149,6 +150,7 @@ impl<'s, 'a> Estimators<'s, 'a> {
             filtered_energy: OnceLock::new(),
             decisions: None,
             accepted_interval: OnceLock::new(),
+            statmc: OnceLock::new(),
         }
     }
 
@@ -197,6 +199,9 @@ impl<'s, 'a> Estimators<'s, 'a> {
                 Piece::AcceptedInterval => {
                     self.accepted_interval();
                 }
+                Piece::Statmc => {
+                    self.statmc();
+                }
             });
     }
 
@@ -235,6 +240,22 @@ impl<'s, 'a> Estimators<'s, 'a> {
             out,
             seconds.max(self.core.replay_seconds) + accepted_s + all_s + t,
         )
+    }
+
+    /// statmc of the accepted samples, made once, and the seconds from the
+    /// dump.
+    fn statmc(&self) -> &(Image, f64) {
+        let decisions = self
+            .decisions
+            .expect("an image that needs the decisions is made with them");
+        self.statmc.get_or_init(|| {
+            let (img, s) = timed(|| {
+                statmc::denoise(self.shared.records, self.shared.header, |i| {
+                    Decision::accepted(decisions[i])
+                })
+            });
+            (img, self.core.replay_seconds + s)
+        })
     }
 
     /// The accepted samples' intervals, made once, and their seconds.
@@ -330,11 +351,22 @@ impl<'s, 'a> Estimators<'s, 'a> {
                 self.bounded(&smoothed, fe_s + t)
             }
             Method::Guided => {
-                let (fe, fe_s) = self.filtered_energy();
-                let (smoothed, t) = timed(|| {
-                    imagespace::bilateral(fe, &rec.occupancy, c.bilateral(), self.white())
+                let (denoised, s) = self.statmc();
+                // The energy the filter removed, spread back as in
+                // filtered_energy.
+                let (with_energy, t) = timed(|| {
+                    energy::energy_aware(
+                        denoised,
+                        &self.core.removed,
+                        &rec.occupancy,
+                        c.energy_sigma,
+                    )
                 });
-                self.guided(&smoothed, fe_s + t)
+                self.guided(&with_energy, s + t)
+            }
+            Method::Statmc => {
+                let (img, s) = self.statmc();
+                (img.clone(), *s)
             }
             Method::Oidn | Method::OidnCi | Method::GuidedOidn => {
                 unreachable!("OIDN goes through Estimators::image")
@@ -416,6 +448,7 @@ mod tests {
                 self.shared.interval.get().is_some(),
                 self.oidn_mean.get().is_some(),
                 self.accepted_interval.get().is_some(),
+                self.statmc.get().is_some(),
             ];
             Piece::ALL
                 .into_iter()

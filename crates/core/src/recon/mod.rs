@@ -11,6 +11,7 @@ pub mod median;
 pub mod mon;
 pub mod robust;
 pub mod rwmc;
+pub mod statmc;
 
 use crate::dump::{Header, Record, Validity};
 pub use pathdensity_format::image::{Image, stored};

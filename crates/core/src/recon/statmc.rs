@@ -1,0 +1,215 @@
+//! A statistical Monte Carlo denoiser after Sakai et al., *A Statistical
+//! Approach to Monte Carlo Denoising* (SIGGRAPH Asia 2024): a pixel
+//! averages those neighbours whose samples a Welch t-test cannot tell
+//! from its own, and no others (docs/filter.md §3, F11). The dump gives
+//! every pixel's exact sample statistics, which is what the test needs;
+//! fed with the filter's accepted samples, an outlier neither widens a
+//! pixel's variance nor drags its mean.
+//!
+//! Per pixel and channel, the samples' mean x̄ (what is averaged) and, for
+//! the test, the mean ȳ and unbiased variance s² of their Box-Cox
+//! transform y = (x^λ − 1)/λ with λ = 1/2 (radiance is skewed; the
+//! transform brings a pixel's samples nearer the normal the test assumes;
+//! negative values count as 0). Pixel q is compatible with p when, on
+//! every channel, |ȳ_p − ȳ_q| ≤ t(α, ν)·√(s_p²/n_p + s_q²/n_q), with
+//! α = 0.05 two-sided and ν = n_p + n_q − 2 degrees of freedom (at 0.005
+//! the test merged a highlight into its neighbours more often: docs/RESULTS.md,
+//! "The guided image"). The
+//! output is the mean of the compatible pixels of the (2R + 1)² window,
+//! each weighted by its sample count and a spatial Gaussian of σ = R/2:
+//! the samples of every compatible pixel pooled. A pixel with fewer than
+//! two samples keeps its mean. Deterministic and thread-invariant: each
+//! output pixel is one sum in a fixed order.
+
+use super::Image;
+use crate::dump::{Header, Record, Validity};
+use crate::par::prelude::*;
+
+/// The window's radius R, in pixels.
+pub const RADIUS: usize = 8;
+/// Box-Cox λ.
+const LAMBDA: f64 = 0.5;
+/// Two-sided significance of the test.
+const ALPHA: f64 = 0.05;
+
+/// One pixel's statistics.
+#[derive(Clone, Copy, Default)]
+struct Stats {
+    n: u32,
+    /// Mean of the samples.
+    mean: [f64; 3],
+    /// Mean and Σ(y − ȳ)² of the Box-Cox transformed samples (Welford).
+    y_mean: [f64; 3],
+    y_m2: [f64; 3],
+}
+
+impl Stats {
+    fn add(&mut self, x: [f64; 3]) {
+        self.n += 1;
+        let n = self.n as f64;
+        for (c, x) in x.into_iter().enumerate() {
+            self.mean[c] += (x - self.mean[c]) / n;
+            let y = box_cox(x);
+            let d = y - self.y_mean[c];
+            self.y_mean[c] += d / n;
+            self.y_m2[c] += d * (y - self.y_mean[c]);
+        }
+    }
+
+    /// s²/n of the transformed mean, per channel.
+    fn se2(&self) -> [f64; 3] {
+        let n = self.n as f64;
+        self.y_m2.map(|m| m / (n - 1.0) / n)
+    }
+}
+
+fn box_cox(x: f64) -> f64 {
+    (x.max(0.0).powf(LAMBDA) - 1.0) / LAMBDA
+}
+
+/// z of the standard normal at upper tail `p` (Acklam's rational
+/// approximation, relative error below 1.2·10⁻⁹ for p in (0, 0.5]).
+fn normal_quantile(p: f64) -> f64 {
+    let q = (-2.0 * p.ln()).sqrt();
+    let c = [
+        -7.784_894_002_430_293e-3,
+        -3.223_964_580_411_365e-1,
+        -2.400_758_277_161_838,
+        -2.549_732_539_343_734,
+        4.374_664_141_464_968,
+        2.938_163_982_698_783,
+    ];
+    let d = [
+        7.784_695_709_041_462e-3,
+        3.224_671_290_700_398e-1,
+        2.445_134_137_142_996,
+        3.754_408_661_907_416,
+    ];
+    -(((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5])
+        / ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1.0)
+}
+
+/// Student's t at upper tail `p` with `df` degrees of freedom (the
+/// Cornish-Fisher expansion about the normal; within 1 % for df ≥ 3 at
+/// the tails used here).
+fn t_quantile(p: f64, df: f64) -> f64 {
+    let z = normal_quantile(p);
+    let (z3, z5, z7) = (z.powi(3), z.powi(5), z.powi(7));
+    z + (z3 + z) / (4.0 * df)
+        + (5.0 * z5 + 16.0 * z3 + 3.0 * z) / (96.0 * df * df)
+        + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * df.powi(3))
+}
+
+/// The denoised image of the valid samples `keep(i)` picks (record i):
+/// the accepted ones.
+pub fn denoise(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool) -> Image {
+    let (w, ht) = (h.width as usize, h.height as usize);
+    let mut stats = vec![Stats::default(); h.pixels() * h.frames as usize];
+    for (i, r) in records.iter().enumerate() {
+        if r.validity(h) == Validity::Valid && keep(i) {
+            stats[r.pixel_index(h)].add([r.r as f64, r.g as f64, r.b as f64]);
+        }
+    }
+    // t(α/2, ν) for ν = 0 … 2 × the largest n (one entry per ν).
+    let largest = stats.iter().map(|s| s.n).max().unwrap_or(0) as usize;
+    let t: Vec<f64> = (0..=2 * largest)
+        .map(|df| t_quantile(ALPHA / 2.0, df.max(1) as f64))
+        .collect();
+    let sigma = RADIUS as f64 / 2.0;
+    let spatial: Vec<f64> = (0..=RADIUS)
+        .map(|d| (-((d * d) as f64) / (2.0 * sigma * sigma)).exp())
+        .collect();
+    let mut img = Image::for_header(h);
+    img.data.par_iter_mut().enumerate().for_each(|(px, out)| {
+        let p = &stats[px];
+        if p.n == 0 {
+            return;
+        }
+        if p.n < 2 {
+            *out = p.mean;
+            return;
+        }
+        let (frame, i) = (px / (w * ht), px % (w * ht));
+        let (x, y) = (i % w, i / w);
+        let base = frame * w * ht;
+        let p_se2 = p.se2();
+        let (mut sum, mut weight) = ([0.0f64; 3], 0.0f64);
+        for ny in y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(ht) {
+            let wy = spatial[ny.abs_diff(y)];
+            for nx in x.saturating_sub(RADIUS)..(x + RADIUS + 1).min(w) {
+                let q = &stats[base + ny * w + nx];
+                if q.n < 2 {
+                    continue;
+                }
+                let crit = t[(p.n + q.n - 2) as usize];
+                let q_se2 = q.se2();
+                let same = (0..3).all(|c| {
+                    (p.y_mean[c] - q.y_mean[c]).abs() <= crit * (p_se2[c] + q_se2[c]).sqrt()
+                });
+                if same {
+                    let wq = wy * spatial[nx.abs_diff(x)] * q.n as f64;
+                    for (s, m) in sum.iter_mut().zip(q.mean) {
+                        *s += wq * m;
+                    }
+                    weight += wq;
+                }
+            }
+        }
+        // p is always compatible with itself.
+        *out = sum.map(|s| s / weight);
+    });
+    img
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::recon::test_header;
+
+    #[test]
+    fn quantiles_against_tables() {
+        assert!((normal_quantile(0.0025) - 2.807_033_768).abs() < 1e-6);
+        assert!((normal_quantile(0.025) - 1.959_963_985).abs() < 1e-6);
+        // t tables: t(0.0025, 30) = 3.0298, t(0.0025, 10) = 3.5814.
+        assert!((t_quantile(0.0025, 30.0) - 3.0298).abs() < 2e-3);
+        assert!((t_quantile(0.0025, 10.0) - 3.5814).abs() < 2e-2);
+    }
+
+    /// Two flat halves of a film: each pixel averages its own half only
+    /// (the test tells 1 from 5 with 16 samples of spread 0.1), so the
+    /// edge stays sharp and the noise drops.
+    #[test]
+    fn averages_within_a_region_and_not_across_an_edge() {
+        let h = test_header(8, 4);
+        let mut recs = Vec::new();
+        for y in 0..4 {
+            for x in 0..8 {
+                let level = if x < 4 { 1.0 } else { 5.0 };
+                for s in 0..16 {
+                    let v = level + 0.1 * ((s * 7 + x * 3 + y) % 5) as f32 - 0.2;
+                    recs.push(Record::new(x as f32 + 0.5, y as f32 + 0.5, 0.0, [v; 3]));
+                }
+            }
+        }
+        let img = denoise(&recs, &h, |_| true);
+        for y in 0..4 {
+            for x in 0..8 {
+                let want = if x < 4 { 1.0 } else { 5.0 };
+                let got = img.data[y * 8 + x][0];
+                assert!((got - want).abs() < 0.05, "({x}, {y}): {got}");
+            }
+        }
+    }
+
+    /// An outlier the caller leaves out does not move its pixel.
+    #[test]
+    fn left_out_samples_do_not_count() {
+        let h = test_header(1, 1);
+        let mut recs: Vec<Record> = (0..8)
+            .map(|i| Record::new(0.5, 0.5, 0.0, [1.0 + 0.01 * i as f32; 3]))
+            .collect();
+        recs.push(Record::new(0.5, 0.5, 0.0, [1000.0; 3]));
+        let img = denoise(&recs, &h, |i| i < 8);
+        assert!((img.data[0][0] - 1.035).abs() < 1e-6, "{:?}", img.data[0]);
+    }
+}
