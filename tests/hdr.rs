@@ -197,7 +197,7 @@ fn the_final_pass_against_all_agrees_with_the_plain_oracle() {
                 )
             })
             .collect();
-        for space in ColorSpace::ALL {
+        for &space in ColorSpace::ALL {
             for k in [1, 5, 12] {
                 let c = FilterConfig {
                     k,

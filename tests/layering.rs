@@ -82,7 +82,7 @@ fn the_format_crate_and_the_renderer_depend_on_nothing_above_them() {
 /// pipeline: a module may import its own layer and those below it only.
 const CORE_LAYERS: &[&[&str]] = &[
     &[
-        "dump", "image", "io", "par", "progress", "quantile", "synth",
+        "dump", "image", "names", "par", "progress", "quantile", "synth",
     ],
     &["joint"],
     &["density"],

@@ -130,7 +130,7 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("sweep.json")).unwrap()).unwrap();
     assert_eq!(json["rows"].as_array().unwrap().len(), 24);
-    for f in ["rms_vs_time.svg", "rms_vs_k.svg"] {
+    for f in ["rms_vs_time.svg", "rms_vs_k.svg", "flip_vs_k.svg"] {
         assert!(
             std::fs::read_to_string(out.join(f))
                 .unwrap()
@@ -138,7 +138,7 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
         );
     }
     // The PNG plots decode, at the plot size, and are not blank.
-    for f in ["rms_vs_time.png", "rms_vs_k.png"] {
+    for f in ["rms_vs_time.png", "rms_vs_k.png", "flip_vs_k.png"] {
         let img = image::open(out.join(f)).unwrap().to_rgb8();
         assert_eq!(img.dimensions(), (800, 500));
         let dark = img.pixels().filter(|p| p.0.iter().all(|&c| c < 80)).count();

@@ -12,6 +12,7 @@ use crate::io::guard::Inputs;
 use crate::metrics::Metrics;
 use crate::progress::{Progress, Silent};
 use crate::report;
+use crate::report::sweep::Measure;
 use crate::sweep::{self, Sweep, SweepOptions};
 
 /// The dump and the reference, which the sweep's folder must not hold.
@@ -61,11 +62,12 @@ fn write_sweep(s: &Sweep, dir: &Path) -> Result<()> {
         &dir.join("rms_vs_time.png"),
         &plot(report::sweep::plot_time_png(s))?,
     )?;
-    atomic::write_bytes(&dir.join("rms_vs_k.svg"), &svg(report::sweep::plot_k(s))?)?;
-    atomic::write_bytes(
-        &dir.join("rms_vs_k.png"),
-        &plot(report::sweep::plot_k_png(s))?,
-    )?;
+    for (name, measure) in [("rms_vs_k", Measure::Rms), ("flip_vs_k", Measure::Flip)] {
+        let svg_bytes = svg(report::sweep::plot_k(s, measure))?;
+        atomic::write_bytes(&dir.join(format!("{name}.svg")), &svg_bytes)?;
+        let png_bytes = plot(report::sweep::plot_k_png(s, measure))?;
+        atomic::write_bytes(&dir.join(format!("{name}.png")), &png_bytes)?;
+    }
     Ok(())
 }
 

@@ -211,18 +211,46 @@ fn chart_time<DB: DrawingBackend>(s: &Sweep, root: DrawingArea<DB, Shift>) -> Re
     Ok(())
 }
 
-/// RMS against k, one line per σ_color, at σ_image = 3 (or the first
-/// σ_image swept) and the first white swept. SVG text.
-pub fn plot_k(s: &Sweep) -> Result<String, String> {
-    to_svg(PLOT_SIZE, |root| chart_k(s, root))
+/// The metric a plot against k shows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Measure {
+    Rms,
+    Flip,
 }
 
-/// [`Sweep::plot_k`] as PNG bytes.
-pub fn plot_k_png(s: &Sweep) -> Result<Vec<u8>, String> {
-    to_png(PLOT_SIZE, |root| chart_k(s, root))
+impl Measure {
+    fn of(self, m: &Metrics) -> f64 {
+        match self {
+            Measure::Rms => m.rms,
+            Measure::Flip => m.flip,
+        }
+    }
+
+    fn label(self) -> &'static str {
+        match self {
+            Measure::Rms => "RMS",
+            Measure::Flip => "FLIP",
+        }
+    }
 }
 
-fn chart_k<DB: DrawingBackend>(s: &Sweep, root: DrawingArea<DB, Shift>) -> Result<(), String> {
+/// `measure` against k, one line per σ_color, at σ_image = 3 (or the
+/// first σ_image swept) and the first white swept. SVG text.
+pub fn plot_k(s: &Sweep, measure: Measure) -> Result<String, String> {
+    to_svg(PLOT_SIZE, |root| chart_k(s, measure, root))
+}
+
+/// [`plot_k`] as PNG bytes.
+pub fn plot_k_png(s: &Sweep, measure: Measure) -> Result<Vec<u8>, String> {
+    to_png(PLOT_SIZE, |root| chart_k(s, measure, root))
+}
+
+fn chart_k<DB: DrawingBackend>(
+    s: &Sweep,
+    measure: Measure,
+    root: DrawingArea<DB, Shift>,
+) -> Result<(), String> {
+    let value = |m: &Metrics| measure.of(m);
     let si = if s.rows.iter().any(|r| r.sigma_image == 3.0) {
         3.0
     } else {
@@ -236,8 +264,8 @@ fn chart_k<DB: DrawingBackend>(s: &Sweep, root: DrawingArea<DB, Shift>) -> Resul
         }
         let name = format!("σ_color {}", r.sigma_color);
         match series.iter_mut().find(|s| s.0 == name) {
-            Some(s) => s.1.push((r.k as f64, m.rms)),
-            None => series.push((name, vec![(r.k as f64, m.rms)])),
+            Some(s) => s.1.push((r.k as f64, value(m))),
+            None => series.push((name, vec![(r.k as f64, value(m))])),
         }
     }
     let k_max = s.rows.iter().map(|r| r.k).max().unwrap_or(1).max(2) as f64 * 1.5;
@@ -247,17 +275,20 @@ fn chart_k<DB: DrawingBackend>(s: &Sweep, root: DrawingArea<DB, Shift>) -> Resul
         .baselines
         .iter()
         .find(|b| b.method == "mean")
-        .map_or(0.0, |b| b.metrics.rms);
+        .map_or(0.0, |b| value(&b.metrics));
     let e_max = s
         .ok_rows()
-        .map(|(_, m)| m.rms)
+        .map(|(_, m)| value(m))
         .fold(mean_rms.max(1e-6), f64::max)
         * 1.4;
     let e = |e: DrawingAreaErrorKind<_>| e.to_string();
     root.fill(&WHITE).map_err(e)?;
     let mut chart = ChartBuilder::on(&root)
         .caption(
-            format!("RMS against k (σ_image {si}, white {white})"),
+            format!(
+                "{} against k (σ_image {si}, white {white})",
+                measure.label()
+            ),
             ("sans-serif", 18),
         )
         .margin(12)
@@ -269,7 +300,7 @@ fn chart_k<DB: DrawingBackend>(s: &Sweep, root: DrawingArea<DB, Shift>) -> Resul
     chart
         .configure_mesh()
         .x_desc("k")
-        .y_desc("RMS")
+        .y_desc(measure.label())
         .draw()
         .map_err(e)?;
     for (i, (name, mut pts)) in series.into_iter().enumerate() {
@@ -282,7 +313,7 @@ fn chart_k<DB: DrawingBackend>(s: &Sweep, root: DrawingArea<DB, Shift>) -> Resul
             .legend(move |(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], color));
     }
     if let Some(mean) = s.baselines.iter().find(|b| b.method == "mean") {
-        let y = mean.metrics.rms;
+        let y = value(&mean.metrics);
         chart
             .draw_series(LineSeries::new(
                 [(1.0, y), (k_max, y)],

@@ -31,8 +31,7 @@ use crate::recon::rwmc::RwmcParams;
 
 /// A learned denoiser run on every selected method's image as well
 /// (`METHOD+oidn`), or none.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Denoise {
     #[default]
     None,
@@ -40,29 +39,10 @@ pub enum Denoise {
     Oidn,
 }
 
-impl std::str::FromStr for Denoise {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Denoise, String> {
-        match s {
-            "none" => Ok(Denoise::None),
-            "oidn" => Ok(Denoise::Oidn),
-            _ => Err(format!("unknown denoiser {s:?} (none or oidn)")),
-        }
-    }
-}
-
-impl std::fmt::Display for Denoise {
-    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        f.write_str(match self {
-            Denoise::None => "none",
-            Denoise::Oidn => "oidn",
-        })
-    }
-}
+crate::names::named!(Denoise, "denoiser", { None => "none", Oidn => "oidn" });
 
 /// The reconstruction filter W by name (docs/filter.md, "Reconstruction").
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Recon {
     /// A sample counts for the pixel that contains it.
     Box,
@@ -70,27 +50,7 @@ pub enum Recon {
     Gaussian,
 }
 
-impl std::str::FromStr for Recon {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Recon, String> {
-        match s {
-            "box" => Ok(Recon::Box),
-            "gaussian" => Ok(Recon::Gaussian),
-            _ => Err(format!(
-                "unknown reconstruction filter {s:?} (box or gaussian)"
-            )),
-        }
-    }
-}
-
-impl std::fmt::Display for Recon {
-    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        f.write_str(match self {
-            Recon::Box => "box",
-            Recon::Gaussian => "gaussian",
-        })
-    }
-}
+crate::names::named!(Recon, "reconstruction filter", { Box => "box", Gaussian => "gaussian" });
 
 impl Recon {
     pub fn filter(self) -> ReconFilter {

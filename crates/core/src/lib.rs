@@ -16,6 +16,7 @@ pub mod imagespace;
 pub mod joint;
 pub mod method;
 pub mod metrics;
+mod names;
 pub mod par;
 pub mod pipeline;
 pub mod progress;

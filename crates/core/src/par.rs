@@ -120,11 +120,15 @@ mod sequential {
         }
 
         pub trait ParallelSliceMut<T> {
+            fn par_iter_mut(&mut self) -> std::slice::IterMut<'_, T>;
             fn par_chunks_mut(&mut self, n: usize) -> std::slice::ChunksMut<'_, T>;
             fn par_sort_unstable_by_key<K: Ord>(&mut self, f: impl Fn(&T) -> K);
         }
 
         impl<T> ParallelSliceMut<T> for [T] {
+            fn par_iter_mut(&mut self) -> std::slice::IterMut<'_, T> {
+                self.iter_mut()
+            }
             fn par_chunks_mut(&mut self, n: usize) -> std::slice::ChunksMut<'_, T> {
                 self.chunks_mut(n)
             }

@@ -345,6 +345,8 @@ fn html(out_dir: &Path, dumps: &[(&Entry, Option<ReportDigest>)], images: &[Imag
         s += &plot(&measured, images, "RMS display / mean's", |m| {
             Some(m.pooled.rms_display)
         });
+        s += "<h2>FLIP of each image, relative to the mean's, per dump</h2>\n<p>NVIDIA's perceptual error of the display transform (docs/filter.md §4). Below 1: looks closer to the reference than the mean.</p>\n";
+        s += &plot(&measured, images, "FLIP / mean's", |m| Some(m.pooled.flip));
         let animated: Vec<(&str, &ReportDigest)> = measured
             .iter()
             .copied()

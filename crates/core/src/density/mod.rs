@@ -57,8 +57,7 @@ impl Decision {
 
 /// Which samples the final pass judges a stored sample against
 /// (docs/filter.md §2).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum FinalPass {
     /// The other stored samples, T \ {s}: the paper's step 3.
     #[default]
@@ -67,31 +66,7 @@ pub enum FinalPass {
     All,
 }
 
-impl FinalPass {
-    pub fn name(self) -> &'static str {
-        match self {
-            FinalPass::Stored => "stored",
-            FinalPass::All => "all",
-        }
-    }
-}
-
-impl std::str::FromStr for FinalPass {
-    type Err = String;
-    fn from_str(s: &str) -> Result<FinalPass, String> {
-        match s {
-            "stored" => Ok(FinalPass::Stored),
-            "all" => Ok(FinalPass::All),
-            _ => Err(format!("unknown final pass {s:?} (stored or all)")),
-        }
-    }
-}
-
-impl std::fmt::Display for FinalPass {
-    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
+crate::names::named!(FinalPass, "final pass", { Stored => "stored", All => "all" });
 
 /// How the replay runs. None of these change a decision.
 #[derive(Clone, Debug)]

@@ -31,7 +31,8 @@ impl Default for BilateralParams {
     }
 }
 
-/// Filters every frame of `img`; `white` is the Lab white luminance.
+/// Filters every frame of `img` (docs/filter.md F8); `white` is the Lab
+/// white luminance.
 ///
 /// Both weights are symmetric, so each pair of pixels is weighed once and
 /// its weight added to both pixels' sums: half the `exp` calls of a

@@ -8,8 +8,7 @@ pub mod white;
 use crate::dump::{Header, Record};
 
 /// The colour coordinates of the joint space (docs/filter.md §1).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum ColorSpace {
     /// CIELAB (F2), the paper's.
     #[default]
@@ -21,16 +20,6 @@ pub enum ColorSpace {
 }
 
 impl ColorSpace {
-    pub const ALL: [ColorSpace; 3] = [ColorSpace::Cielab, ColorSpace::Loglab, ColorSpace::Logluv];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            ColorSpace::Cielab => "cielab",
-            ColorSpace::Loglab => "loglab",
-            ColorSpace::Logluv => "logluv",
-        }
-    }
-
     /// The three colour coordinates of linear RGB for white luminance `white`.
     #[inline]
     pub fn coords(self, rgb: [f64; 3], white: f64) -> [f64; 3] {
@@ -42,21 +31,11 @@ impl ColorSpace {
     }
 }
 
-impl std::str::FromStr for ColorSpace {
-    type Err = String;
-    fn from_str(s: &str) -> Result<ColorSpace, String> {
-        ColorSpace::ALL
-            .into_iter()
-            .find(|c| c.name() == s)
-            .ok_or_else(|| format!("unknown colour space {s:?} (cielab, loglab or logluv)"))
-    }
-}
-
-impl std::fmt::Display for ColorSpace {
-    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
+crate::names::named!(ColorSpace, "colour space", {
+    Cielab => "cielab",
+    Loglab => "loglab",
+    Logluv => "logluv",
+});
 
 /// Scales of the joint space. A point is
 /// `(x/σ_image, y/σ_image, [t/σ_time], c₁/σ_color, c₂/σ_color, c₃/σ_color)`
@@ -120,8 +99,8 @@ impl JointSpace {
         ]
     }
 
-    /// The joint point of a valid record. `D` is 5 for a still (no time
-    /// axis) and 6 for an animation.
+    /// The joint point of a valid record (docs/filter.md F1). `D` is 5 for
+    /// a still (no time axis) and 6 for an animation.
     #[inline]
     pub fn point<const D: usize>(&self, r: &Record) -> [f32; D] {
         debug_assert!(D == 5 || D == 6);

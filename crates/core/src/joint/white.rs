@@ -71,7 +71,8 @@ impl<'de> serde::Deserialize<'de> for White {
     }
 }
 
-/// The median luminance of the valid samples with Y > 0, over MID_GREY.
+/// The median luminance of the valid samples with Y > 0, over MID_GREY
+/// (docs/filter.md F3).
 pub fn auto_white(records: &[Record], h: &Header) -> Option<f64> {
     let lum = || {
         records

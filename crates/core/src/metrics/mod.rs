@@ -42,7 +42,8 @@ pub fn display(v: f64, exposure: f64) -> f64 {
     srgb_encode((v * exposure).clamp(0.0, 1.0))
 }
 
-/// Metrics of pixels `img` against `reference` (same length). The image is
+/// Metrics of pixels `img` against `reference` (same length; docs/filter.md
+/// F9). The image is
 /// measured as it is written (f32), so a reference read back from an image
 /// this tool wrote compares exactly.
 pub fn compare_pixels(img: &[[f64; 3]], reference: &[[f64; 3]], exposure: f64) -> Metrics {

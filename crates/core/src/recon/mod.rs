@@ -101,8 +101,8 @@ impl Film {
         self.sum[px][3]
     }
 
-    /// The weighted mean of every pixel; pixels with no valid sample of
-    /// their own (`occupancy` 0) are 0, as docs/filter.md §3 requires.
+    /// The weighted mean of every pixel (docs/filter.md F7); pixels with no
+    /// valid sample of their own (`occupancy` 0) are 0, as §3 requires.
     pub fn resolve(&self, occupancy: &[u32]) -> Image {
         let frames = self.sum.len() / (self.width * self.height).max(1);
         let mut img = Image::new(self.width, self.height, frames);

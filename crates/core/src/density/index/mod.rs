@@ -82,8 +82,7 @@ pub trait NeighbourIndex<const D: usize>: Sync + Send {
 }
 
 /// Which index the filter runs on.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum IndexKind {
     /// Uniform grid over the image (and time) axes with an exact ring search.
     Grid,
@@ -91,25 +90,7 @@ pub enum IndexKind {
     Kdtree,
 }
 
-impl std::fmt::Display for IndexKind {
-    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        f.write_str(match self {
-            IndexKind::Grid => "grid",
-            IndexKind::Kdtree => "kdtree",
-        })
-    }
-}
-
-impl std::str::FromStr for IndexKind {
-    type Err = String;
-    fn from_str(s: &str) -> Result<IndexKind, String> {
-        match s {
-            "grid" => Ok(IndexKind::Grid),
-            "kdtree" => Ok(IndexKind::Kdtree),
-            _ => Err(format!("unknown index {s:?} (grid or kdtree)")),
-        }
-    }
-}
+crate::names::named!(IndexKind, "index", { Grid => "grid", Kdtree => "kdtree" });
 
 /// Offers `arena[first_new..]` to `kb`: the brute-force completion.
 pub(crate) fn offer_suffix<const D: usize>(
