@@ -173,6 +173,14 @@ enum Command {
         /// Reference EXR (for an animation, REF.exr names REF_0000.exr, …).
         #[arg(long)]
         reference: Option<PathBuf>,
+        /// The renderer's albedo EXR, OIDN's auxiliary input (builds with
+        /// OIDN; an animation's as for --reference).
+        #[arg(long)]
+        albedo: Option<PathBuf>,
+        /// The renderer's normal EXR, OIDN's second auxiliary input (needs
+        /// --albedo).
+        #[arg(long)]
+        normal: Option<PathBuf>,
         /// Worker threads (default: one per core).
         #[arg(long, default_value_t = 0, value_parser = pathdensity::cli::threads)]
         threads: usize,
@@ -442,6 +450,8 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             out,
             config,
             reference,
+            albedo,
+            normal,
             threads,
             decisions,
             sigma_map,
@@ -451,6 +461,8 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             let mut o = filter::FilterOptions::new(dump, out);
             o.config = config.into();
             o.reference = reference;
+            o.albedo = albedo;
+            o.normal = normal;
             o.threads = threads;
             o.decisions = decisions;
             o.sigma_map = sigma_map;

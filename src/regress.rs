@@ -168,6 +168,7 @@ fn run(dir: &Path, m: &Manifest) -> Result<Outcome> {
             exact_sigma: crate::density::ExactSigma::None,
             reference: Some(&reference),
             progress: &Silent,
+            aux: None,
         },
     );
     dump.intact()?;

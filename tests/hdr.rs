@@ -308,6 +308,7 @@ fn the_recommended_image_keeps_the_highlight_and_drops_the_fireflies() {
                 exact_sigma: ExactSigma::None,
                 reference: None,
                 progress: &Silent,
+                aux: None,
             },
         )
         .unwrap();

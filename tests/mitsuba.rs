@@ -284,6 +284,46 @@ fn the_shipped_scenes_export() {
         let d = DumpReader::open(&p).unwrap();
         assert_eq!((d.header().width, d.header().height), (16, 12), "{name}");
         assert_eq!(d.header().scene, name);
+        if name == "glossy-highlight" {
+            // OIDN's auxiliary inputs, on the same film: albedo in [0, 1],
+            // normals of unit length where something was hit.
+            let (a, n) = (dir.path().join("a.exr"), dir.path().join("n.exr"));
+            ok(tool(
+                &py,
+                "export.py",
+                &[
+                    &xml,
+                    "-o",
+                    s(&p),
+                    "--size",
+                    "16x12",
+                    "--spp",
+                    "1",
+                    "--quiet",
+                    "--albedo-out",
+                    s(&a),
+                    "--normal-out",
+                    s(&n),
+                    "--aux-spp",
+                    "4",
+                ],
+            ));
+            let (w, h, albedo) = pathdensity::io::exr::read_rgb(&a, 16 * 12).unwrap();
+            assert_eq!((w, h), (16, 12));
+            assert!(albedo.iter().flatten().all(|v| (0.0..=1.0).contains(v)));
+            assert!(albedo.iter().any(|p| p.iter().any(|&v| v > 0.0)));
+            let (_, _, normal) = pathdensity::io::exr::read_rgb(&n, 16 * 12).unwrap();
+            let unit = normal
+                .iter()
+                .filter(|p| p.iter().any(|&v| v != 0.0))
+                .filter(|p| ((p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 1.0).abs() < 0.05)
+                .count();
+            assert!(
+                unit > normal.len() / 2,
+                "{unit} of {} normals are unit",
+                normal.len()
+            );
+        }
         assert!(
             d.records()
                 .iter()

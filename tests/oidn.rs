@@ -249,6 +249,47 @@ fn oidn_builds_recommend_guided_oidn() {
         !out.join("oidn.exr").exists(),
         "plain oidn is not a default"
     );
+
+    // With the renderer's albedo and normal: OIDN's image changes, and
+    // report.json says which were given.
+    let (w, h) = (24, 20);
+    let mut albedo = pathdensity::image::Image::new(w, h, 1);
+    for (p, px) in albedo.data.iter_mut().enumerate() {
+        *px = [if p % w < w / 2 { 0.2 } else { 0.9 }; 3];
+    }
+    let normal = pathdensity::image::Image {
+        data: vec![[0.0, 0.0, 1.0]; w * h],
+        ..albedo.clone()
+    };
+    pathdensity::io::exr::write_image(tmp.path(), "albedo", &albedo).unwrap();
+    pathdensity::io::exr::write_image(tmp.path(), "normal", &normal).unwrap();
+    let runs: Vec<Vec<u8>> = [false, true]
+        .iter()
+        .map(|&aux| {
+            let out = tmp.path().join(format!("aux-{aux}"));
+            let mut c = Command::new(&bin);
+            c.args([
+                "filter",
+                s(&dump),
+                "-o",
+                s(&out),
+                "--no-html",
+                "--methods",
+                "oidn",
+            ]);
+            if aux {
+                c.args(["--albedo", s(&tmp.path().join("albedo.exr"))]);
+                c.args(["--normal", s(&tmp.path().join("normal.exr"))]);
+            }
+            let o = c.output().unwrap();
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+            let report: serde_json::Value =
+                serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+            assert_eq!(report["albedo"].is_string(), aux);
+            std::fs::read(out.join("oidn.exr")).unwrap()
+        })
+        .collect();
+    assert_ne!(runs[0], runs[1], "the albedo changes OIDN's image");
 }
 
 #[test]
@@ -277,6 +318,7 @@ fn the_default_build_refuses_oidn_in_one_line() {
         ["--methods", "oidn"],
         ["--methods", "oidn_ci"],
         ["--denoise", "oidn"],
+        ["--albedo", "albedo.exr"],
     ] {
         let o = Command::new(bin)
             .args(["filter", s(&dump), "-o", s(&tmp.path().join("o"))])

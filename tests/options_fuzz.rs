@@ -53,6 +53,7 @@ fn non_finite_image(config: &FilterConfig, h: &Header, recs: &[Record]) -> Optio
             exact_sigma: ExactSigma::All,
             reference: None,
             progress: &Silent,
+            aux: None,
         },
     )
     .ok()?;

@@ -212,7 +212,7 @@ proptest! {
         };
         let h = p.header();
         let recs = records(&p);
-        let options = RunOptions { threads: 2, exact_sigma: pathdensity::density::ExactSigma::None, reference: None, progress: &Silent };
+        let options = RunOptions { threads: 2, exact_sigma: pathdensity::density::ExactSigma::None, reference: None, progress: &Silent, aux: None };
         match pipeline::run(&recs, &h, &config, &options) {
             Err(e) => {
                 let msg = e.to_string();

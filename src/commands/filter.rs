@@ -10,6 +10,7 @@ use anyhow::{Context, Result, bail};
 use crate::config::{FilterConfig, Method};
 use crate::density::{Decision, ExactSigma};
 use crate::dump::{DumpReader, Header};
+use crate::imagespace::oidn::{self, Aux};
 use crate::io::atomic::{self, Staging};
 use crate::io::guard::Inputs;
 use crate::io::{exr, png};
@@ -28,6 +29,10 @@ pub struct FilterOptions {
     pub out_dir: PathBuf,
     pub config: FilterConfig,
     pub reference: Option<PathBuf>,
+    /// The renderer's albedo and normal images, OIDN's auxiliary inputs
+    /// (a normal only with an albedo).
+    pub albedo: Option<PathBuf>,
+    pub normal: Option<PathBuf>,
     /// Worker threads; 0 means rayon's default (one per core).
     pub threads: usize,
     pub decisions: Option<PathBuf>,
@@ -50,6 +55,8 @@ impl FilterOptions {
             out_dir: out_dir.into(),
             config: FilterConfig::DEFAULT,
             reference: None,
+            albedo: None,
+            normal: None,
             threads: 0,
             decisions: None,
             sigma_map: false,
@@ -106,7 +113,10 @@ fn check_decisions_path(p: &Path, inputs: &Inputs) -> Result<()> {
 /// Every file the run reads, which no output may be or hold.
 fn inputs(opts: &FilterOptions, frames: usize) -> Inputs {
     let mut inputs = Inputs::of([&opts.dump]);
-    if let Some(r) = &opts.reference {
+    for r in [&opts.reference, &opts.albedo, &opts.normal]
+        .into_iter()
+        .flatten()
+    {
         for p in exr::reference_files(r, frames) {
             inputs.add(&p);
         }
@@ -136,11 +146,11 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
             h.height
         );
     }
-    let reference = opts
-        .reference
-        .as_ref()
-        .map(|p| exr::read_reference(p, h.width as usize, h.height as usize, h.frames as usize))
-        .transpose()?;
+    let film = |p: &PathBuf| {
+        exr::read_reference(p, h.width as usize, h.height as usize, h.frames as usize)
+    };
+    let reference = opts.reference.as_ref().map(film).transpose()?;
+    let aux = read_aux(opts, film)?;
     let inputs = inputs(opts, h.frames as usize);
     if let Some(p) = &opts.decisions {
         check_decisions_path(p, &inputs)?;
@@ -164,6 +174,7 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
             exact_sigma,
             reference: reference.as_ref(),
             progress,
+            aux: aux.as_ref(),
         },
     );
     dump.intact()?;
@@ -192,6 +203,32 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
         atomic::write_bytes(p, &run.decisions)?;
     }
     Ok(report)
+}
+
+/// OIDN's auxiliary images, read with `film` (sized to the dump's film).
+fn read_aux(
+    opts: &FilterOptions,
+    film: impl Fn(&PathBuf) -> std::result::Result<Image, pathdensity_format::Error>,
+) -> Result<Option<Aux>> {
+    let Some(albedo) = &opts.albedo else {
+        if opts.normal.is_some() {
+            bail!("--normal needs --albedo (OIDN takes a normal only with an albedo)");
+        }
+        return Ok(None);
+    };
+    if !oidn::AVAILABLE {
+        return Err(crate::config::ConfigError {
+            field: "albedo",
+            problem: "is OIDN's input, and this build has none: build with `--features oidn` \
+                      after `bash tools/oidn/setup.sh` (README, \"OIDN\")"
+                .into(),
+        }
+        .into());
+    }
+    Ok(Some(Aux {
+        albedo: film(albedo)?,
+        normal: opts.normal.as_ref().map(film).transpose()?,
+    }))
 }
 
 /// When the run started, and how long opening it took.
@@ -301,6 +338,8 @@ fn write_outputs(
         metrics: run.metrics.clone(),
         recommended: pipeline::recommended(&run.images),
         reference: opts.reference.as_ref().map(|p| p.display().to_string()),
+        albedo: opts.albedo.as_ref().map(|p| p.display().to_string()),
+        normal: opts.normal.as_ref().map(|p| p.display().to_string()),
         method_seconds: run.images.iter().map(|e| (e.id(), e.seconds)).collect(),
         energy_removed: EnergyRemoved::new(&run.removed, mean),
         sigma_scale,

@@ -69,6 +69,11 @@ pub struct FilterReport {
     /// of the printed table.
     pub recommended: Option<ImageId>,
     pub reference: Option<String>,
+    /// OIDN's auxiliary images, when given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub albedo: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub normal: Option<String>,
     /// Wall time to produce each image from the dump, passes it shares
     /// with other images included (see README).
     pub method_seconds: BTreeMap<ImageId, f64>,

@@ -4,6 +4,7 @@
     export.py SCENE.xml -o OUT.pds --spp N [--seed S] [--order pixel|pass]
               [--size WxH] [--variant V] [--threads T]
               [--reference-spp M --reference-out REF.exr]
+              [--albedo-out A.exr] [--normal-out N.exr] [--aux-spp K]
 
 Each record is one camera sample: the film position its ray was generated
 from (pixels, row 0 at the top, relative to the film's crop window), t = the
@@ -17,7 +18,10 @@ a time (every pixel of the film, `passes_per_chunk` passes), each chunk
 seeded from (seed, chunk), so the same arguments give the same bytes for any
 thread count. The reference (`--reference-out`) is the per-pixel mean of
 M samples from the same loop with an independent seed: the box
-reconstruction that `pathdensity filter --recon box` uses.
+reconstruction that `pathdensity filter --recon box` uses. The albedo and
+normal (`--albedo-out`, `--normal-out`) come from Mitsuba's `aov`
+integrator on the same film: OIDN's auxiliary inputs, for `pathdensity
+filter --albedo A.exr --normal N.exr`.
 """
 
 import argparse
@@ -74,6 +78,12 @@ def arguments(argv):
     p.add_argument("--threads", type=positive, help="worker threads (default: all cores)")
     p.add_argument("--reference-spp", type=positive, help="samples per pixel of the reference")
     p.add_argument("--reference-out", help="the reference EXR to write")
+    p.add_argument("--albedo-out", help="write the first-hit albedo (Mitsuba's aov integrator) "
+                   "to this EXR: OIDN's auxiliary input (pathdensity filter --albedo)")
+    p.add_argument("--normal-out", help="write the shading normal to this EXR "
+                   "(pathdensity filter --normal)")
+    p.add_argument("--aux-spp", type=positive, default=16,
+                   help="samples per pixel of the albedo and normal (default 16)")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     args = p.parse_args(argv)
     if (args.reference_spp is None) != (args.reference_out is None):
@@ -294,6 +304,22 @@ def export_reference(camera, args):
     write_exr(camera.mi, mean, args.reference_out)
 
 
+def export_aux(mi, scene, args):
+    """The albedo and normal OIDN takes beside the colour: Mitsuba's aov
+    integrator on the same film (so the same pixels), at --aux-spp."""
+    integrator = mi.load_dict({"type": "aov", "aovs": "albedo:albedo,nn:sh_normal"})
+    try:
+        image = np.array(mi.render(scene, integrator=integrator, spp=args.aux_spp,
+                                   seed=args.seed))
+    except Exception as e:
+        raise ExportError(f"{args.scene}: the aov integrator failed: {first_line(e)}")
+    if image.ndim != 3 or image.shape[2] < 6:
+        raise ExportError(f"{args.scene}: the aov integrator gave {image.shape}, not H x W x 6")
+    for path, channels in ((args.albedo_out, image[:, :, 0:3]), (args.normal_out, image[:, :, 3:6])):
+        if path:
+            write_exr(mi, np.ascontiguousarray(channels, dtype=np.float32), path)
+
+
 def write_exr(mi, image, path):
     tmp = f"{path}.tmp-{os.getpid()}.exr"
     try:
@@ -321,6 +347,8 @@ def main(argv):
                   f"in {seconds:.2f} s ({mi.variant()})", file=sys.stderr)
         if args.reference_out:
             export_reference(camera, args)
+        if args.albedo_out or args.normal_out:
+            export_aux(mi, scene, args)
     except ExportError as e:
         print(f"{PROG}: {e}", file=sys.stderr)
         return 1

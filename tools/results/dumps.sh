@@ -4,8 +4,10 @@
 # 128) pixels and each of SPPS (default "16 64 256") spp, seed 1,
 # pass-major, with one reference per scene (REF_SPP, default 1024, for ours;
 # MI_REF_SPP, default 4096, for Mitsuba's, rendered by Mitsuba itself).
-# Writes OUT/RENDERER-SCENE-SPP.pds and OUT/RENDERER-SCENE-ref.exr; a file
-# already there is kept. Needs Mitsuba (bash tools/mitsuba/setup.sh).
+# Writes OUT/RENDERER-SCENE-SPP.pds and OUT/RENDERER-SCENE-ref.exr, and for
+# Mitsuba's scenes OUT/mitsuba-SCENE-albedo.exr and -normal.exr (64 spp,
+# Mitsuba's aov integrator: OIDN's auxiliary inputs); a file already there
+# is kept. Needs Mitsuba (bash tools/mitsuba/setup.sh).
 #
 #   bash tools/results/dumps.sh OUT
 set -euo pipefail
@@ -39,7 +41,9 @@ for s in $theirs; do
         dump="$out/mitsuba-$s-$spp.pds"
         [ -f "$dump" ] && continue
         refargs=()
-        [ -f "$ref" ] || refargs=(--reference-spp "$mi_ref_spp" --reference-out "$ref")
+        [ -f "$ref" ] || refargs=(--reference-spp "$mi_ref_spp" --reference-out "$ref"
+            --albedo-out "$out/mitsuba-$s-albedo.exr" --normal-out "$out/mitsuba-$s-normal.exr"
+            --aux-spp 64)
         $py tools/mitsuba/export.py "tools/mitsuba/scenes/$s.xml" -o "$dump" \
             --size "${size}x${size}" --spp "$spp" --seed 1 --quiet "${refargs[@]}"
         echo "$dump" >&2

@@ -18,6 +18,8 @@ p.add_argument("--methods", default="filtered,filtered_energy,filtered_energy_bi
 p.add_argument("--extra", default="")
 p.add_argument("--csv")
 p.add_argument("--threads", default="2")
+p.add_argument("--aux", action="store_true",
+               help="give OIDN the dump's RENDERER-SCENE-albedo.exr and -normal.exr where they exist")
 a = p.parse_args()
 
 rows = []
@@ -32,8 +34,12 @@ with tempfile.TemporaryDirectory() as tmp:
             print(f"{dump}: no {ref}, left out", file=sys.stderr)
             continue
         out = os.path.join(tmp, "out")
+        aux = []
+        albedo, normal = (os.path.join(a.dumps, f"{scene}-{n}.exr") for n in ("albedo", "normal"))
+        if a.aux and os.path.exists(albedo) and os.path.exists(normal):
+            aux = ["--albedo", albedo, "--normal", normal]
         subprocess.run([a.bin, "filter", dump, "-o", out, "--reference", ref, "--methods", a.methods,
-                        "--no-html", "--threads", a.threads, *a.extra.split()],
+                        "--no-html", "--threads", a.threads, *aux, *a.extra.split()],
                        check=True, stdout=subprocess.DEVNULL)
         r = json.load(open(os.path.join(out, "report.json")))
         for name, x in r["metrics"].items():

@@ -27,6 +27,7 @@ fn main() {
         exact_sigma: pathdensity_core::density::ExactSigma::All,
         reference: None,
         progress: &Silent,
+        aux: None,
     };
     let run = pipeline::run(
         dump.records(),

@@ -117,6 +117,8 @@ pub struct Estimators<'s, 'a> {
     /// Every pixel's confidence interval of its accepted samples.
     accepted_interval: OnceLock<(Interval, f64)>,
     statmc: OnceLock<(Image, f64)>,
+    /// OIDN's auxiliary images ([`Self::with_aux`]).
+    aux: Option<&'s imagespace::oidn::Aux>,
 }
 
 impl<'s, 'a> Estimators<'s, 'a> {
@@ -151,7 +153,13 @@ impl<'s, 'a> Estimators<'s, 'a> {
             decisions: None,
             accepted_interval: OnceLock::new(),
             statmc: OnceLock::new(),
+            aux: None,
         }
+    }
+
+    /// The same estimators with OIDN's auxiliary images.
+    pub fn with_aux(self, aux: Option<&'s imagespace::oidn::Aux>) -> Estimators<'s, 'a> {
+        Estimators { aux, ..self }
     }
 
     /// The same estimators with the filter's decisions (one byte per
@@ -296,7 +304,7 @@ impl<'s, 'a> Estimators<'s, 'a> {
 
     fn oidn(&self, img: &Image) -> Result<(Image, f64), String> {
         let occupancy = &self.core.reconstruction.occupancy;
-        let (d, s) = timed(|| imagespace::oidn::denoise(img, occupancy));
+        let (d, s) = timed(|| imagespace::oidn::denoise(img, occupancy, self.aux));
         Ok((d?.image, s))
     }
 

@@ -65,6 +65,8 @@ pub struct RunOptions<'a> {
     /// Measure every image against this reference.
     pub reference: Option<&'a Image>,
     pub progress: &'a dyn Progress,
+    /// OIDN's auxiliary images (the renderer's albedo and normal).
+    pub aux: Option<&'a crate::imagespace::oidn::Aux>,
 }
 
 /// One method's image and the seconds it took from the dump, the passes
@@ -283,7 +285,10 @@ pub fn run(
                 // Every sample accepted: decision-free images read no filtered image.
                 let rec = Reconstruction::all_accepted(mean, occupancy);
                 let core = Core::new(rec, t.elapsed().as_secs_f64(), 0.0);
-                let images = images(&Estimators::before_white(&shared, config, &core), &beside);
+                let images = images(
+                    &Estimators::before_white(&shared, config, &core).with_aux(options.aux),
+                    &beside,
+                );
                 // What the later images share that reads only the samples.
                 shared.prepare(&decided);
                 (images, core)
@@ -310,6 +315,7 @@ pub fn run(
                 let core = Core::new(rec, seconds, replay_seconds);
                 let late = images(
                     &Estimators::new(&shared, config, white, &core)
+                        .with_aux(options.aux)
                         .with_decisions(&result.decisions),
                     &decided,
                 );
@@ -319,7 +325,8 @@ pub fn run(
                 crate::par::join(
                     || {
                         images(
-                            &Estimators::new(&shared, config, white, &undecided_core),
+                            &Estimators::new(&shared, config, white, &undecided_core)
+                                .with_aux(options.aux),
                             &white_only,
                         )
                     },
@@ -447,6 +454,7 @@ mod tests {
                 exact_sigma: ExactSigma::None,
                 reference: None,
                 progress: &crate::progress::Silent,
+                aux: None,
             };
             let run = run(&records, &h, &config, &options).unwrap();
             let made: Vec<(Method, bool)> =
