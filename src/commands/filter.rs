@@ -14,6 +14,7 @@ use crate::imagespace::oidn::{self, Aux};
 use crate::io::atomic::{self, Staging};
 use crate::io::guard::Inputs;
 use crate::io::{exr, png};
+use crate::par::prelude::*;
 use crate::pipeline::{self, RunOptions};
 use crate::progress::{Progress, Silent};
 use crate::recon::Image;
@@ -21,7 +22,6 @@ use crate::report::html::{self, Assets};
 use crate::report::plots;
 use crate::report::viewer::{self, Kind, Shown};
 use crate::report::{EnergyRemoved, FilterReport, Provenance, Timing};
-use rayon::prelude::*;
 
 #[derive(Clone, Debug)]
 pub struct FilterOptions {
@@ -33,7 +33,7 @@ pub struct FilterOptions {
     /// (a normal only with an albedo).
     pub albedo: Option<PathBuf>,
     pub normal: Option<PathBuf>,
-    /// Worker threads; 0 means rayon's default (one per core).
+    /// Worker threads; 0 means one per core.
     pub threads: usize,
     pub decisions: Option<PathBuf>,
     pub sigma_map: bool,
@@ -294,7 +294,7 @@ fn write_outputs(
     let pool = pipeline::thread_pool(opts.threads)?;
     // The dump's hash (for the provenance) beside the images.
     let (exrs, dump_xxh3) = pool.install(|| {
-        rayon::join(
+        crate::par::join(
             || {
                 run.images
                     .iter()
@@ -393,7 +393,7 @@ fn write_outputs(
         }
         // The slice plot (one thread) beside the previews.
         let (pngs, svg) = pool.install(|| {
-            rayon::join(
+            crate::par::join(
                 || {
                     run.images
                         .par_iter()

@@ -13,6 +13,7 @@
 //! cost of that image alone.
 
 use std::sync::OnceLock;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::time::Instant;
 
 use crate::config::FilterConfig;
@@ -62,6 +63,9 @@ pub struct Shared<'a> {
     groups: OnceLock<(PixelGroups<'a>, f64)>,
     /// Every pixel's confidence interval (the `_ci` methods).
     interval: OnceLock<(Interval, f64)>,
+    /// Channels OIDN's input had non-finite, and negative, set to 0, over
+    /// every image denoised.
+    oidn_zeroed: [AtomicU64; 2],
 }
 
 impl<'a> Shared<'a> {
@@ -71,7 +75,14 @@ impl<'a> Shared<'a> {
             header,
             groups: OnceLock::new(),
             interval: OnceLock::new(),
+            oidn_zeroed: Default::default(),
         }
+    }
+
+    /// (non-finite, negative) channels set to 0 in OIDN's inputs so far.
+    pub fn oidn_zeroed(&self) -> (u64, u64) {
+        let [a, b] = &self.oidn_zeroed;
+        (a.load(Relaxed), b.load(Relaxed))
     }
 
     fn groups(&self) -> &(PixelGroups<'a>, f64) {
@@ -305,7 +316,11 @@ impl<'s, 'a> Estimators<'s, 'a> {
     fn oidn(&self, img: &Image) -> Result<(Image, f64), String> {
         let occupancy = &self.core.reconstruction.occupancy;
         let (d, s) = timed(|| imagespace::oidn::denoise(img, occupancy, self.aux));
-        Ok((d?.image, s))
+        let d = d?;
+        let [non_finite, negative] = &self.shared.oidn_zeroed;
+        non_finite.fetch_add(d.non_finite, Relaxed);
+        negative.fetch_add(d.negative, Relaxed);
+        Ok((d.image, s))
     }
 
     fn white(&self) -> f64 {

@@ -351,7 +351,13 @@ pub fn run(
     let rec = &core.reconstruction;
     let (fallback_pixels, empty_pixels) = (rec.fallback_pixels, rec.empty_pixels);
     let occupied = rec.occupancy.len() as u64 - empty_pixels;
-    let warnings = warnings(&result.counts, fallback_pixels, occupied);
+    let mut warnings = warnings(&result.counts, fallback_pixels, occupied);
+    let (non_finite, negative) = shared.oidn_zeroed();
+    if non_finite + negative > 0 {
+        warnings.push(format!(
+            "OIDN takes finite, non-negative values: {non_finite} non-finite and {negative} negative channels of its inputs were set to 0"
+        ));
+    }
     Ok(Run {
         config: *config,
         white,
