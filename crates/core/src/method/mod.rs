@@ -9,6 +9,12 @@
 
 use std::str::FromStr;
 
+mod image;
+mod set;
+
+pub use image::ImageId;
+pub use set::MethodSet;
+
 /// One output image. The names are the file names (`NAME.exr`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Method {
@@ -461,104 +467,6 @@ impl std::fmt::Display for Method {
     }
 }
 
-/// A set of methods that always holds mean and filtered, which every run
-/// makes. Iterates in the canonical order of [`Method::ALL`]; in JSON a
-/// list of names. As many methods as the table has fit.
-///
-/// ```
-/// use pathdensity_core::config::{Method, MethodSet};
-/// let s: MethodSet = [Method::Rwmc].into_iter().collect();
-/// let v: Vec<Method> = s.iter().collect();
-/// assert_eq!(v, [Method::Mean, Method::Filtered, Method::Rwmc]);
-/// ```
-#[derive(Clone, Copy, PartialEq, Eq, Hash)]
-pub struct MethodSet([u64; WORDS]);
-
-/// Words of a [`MethodSet`]: one bit a method.
-const WORDS: usize = Method::COUNT.div_ceil(64);
-
-impl MethodSet {
-    const EMPTY: MethodSet = MethodSet([0; WORDS]);
-
-    /// Mean and filtered.
-    pub const CORE: MethodSet = MethodSet::EMPTY.with(Method::Mean).with(Method::Filtered);
-
-    /// Every method of the table.
-    pub const ALL: MethodSet = {
-        let mut s = MethodSet::EMPTY;
-        let mut i = 0;
-        while i < Method::COUNT {
-            s = s.with(TABLE[i].method);
-            i += 1;
-        }
-        s
-    };
-
-    /// What a run makes unless told otherwise: each row's `default`,
-    /// among the methods this build can make.
-    pub const DEFAULT: MethodSet = {
-        let mut s = MethodSet::CORE;
-        let mut i = 0;
-        while i < Method::COUNT {
-            if TABLE[i].default && TABLE[i].method.available() {
-                s = s.with(TABLE[i].method);
-            }
-            i += 1;
-        }
-        s
-    };
-
-    pub const fn contains(self, m: Method) -> bool {
-        let i = m as usize;
-        self.0[i / 64] & (1 << (i % 64)) != 0
-    }
-
-    /// This set without `m` (mean and filtered stay).
-    pub const fn without(self, m: Method) -> MethodSet {
-        let i = m as usize;
-        let mut words = self.0;
-        words[i / 64] &= !(1 << (i % 64));
-        MethodSet(words).with(Method::Mean).with(Method::Filtered)
-    }
-
-    /// This set and `m`.
-    pub const fn with(self, m: Method) -> MethodSet {
-        let i = m as usize;
-        let mut words = self.0;
-        words[i / 64] |= 1 << (i % 64);
-        MethodSet(words)
-    }
-
-    /// The methods in the canonical order.
-    pub fn iter(self) -> impl Iterator<Item = Method> {
-        Method::ALL.into_iter().filter(move |&m| self.contains(m))
-    }
-}
-
-impl FromIterator<Method> for MethodSet {
-    fn from_iter<I: IntoIterator<Item = Method>>(iter: I) -> MethodSet {
-        iter.into_iter().fold(MethodSet::CORE, MethodSet::with)
-    }
-}
-
-impl std::fmt::Debug for MethodSet {
-    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        f.debug_list().entries(self.iter()).finish()
-    }
-}
-
-impl serde::Serialize for MethodSet {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.collect_seq(self.iter())
-    }
-}
-
-impl<'de> serde::Deserialize<'de> for MethodSet {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<MethodSet, D::Error> {
-        Ok(Vec::<Method>::deserialize(d)?.into_iter().collect())
-    }
-}
-
 // A method is its name in JSON, as on the command line.
 impl serde::Serialize for Method {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
@@ -568,100 +476,6 @@ impl serde::Serialize for Method {
 
 impl<'de> serde::Deserialize<'de> for Method {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Method, D::Error> {
-        let name = String::deserialize(d)?;
-        name.parse().map_err(serde::de::Error::custom)
-    }
-}
-
-/// One image a run makes: a method's, or that image denoised after it
-/// (`METHOD+oidn`). Its name ([`std::fmt::Display`], and its form in JSON)
-/// is the file name; metrics, seconds and reports are keyed by it. Ordered
-/// by name, as the report's maps always were.
-///
-/// ```
-/// use pathdensity_core::method::{ImageId, Method};
-/// let id: ImageId = "filtered+oidn".parse().unwrap();
-/// assert_eq!(id, ImageId { method: Method::Filtered, denoised: true });
-/// assert_eq!(ImageId::from(Method::Mean).to_string(), "mean");
-/// ```
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct ImageId {
-    pub method: Method,
-    /// Denoised by the run's `denoise` after `method`.
-    pub denoised: bool,
-}
-
-/// The suffix of a denoised image's name.
-const DENOISED: &str = "+oidn";
-
-impl From<Method> for ImageId {
-    fn from(method: Method) -> ImageId {
-        ImageId {
-            method,
-            denoised: false,
-        }
-    }
-}
-
-impl ImageId {
-    /// Every image a run can make in the canonical order: each method's
-    /// ([`Method::ALL`]), then each denoised.
-    pub fn all() -> impl Iterator<Item = ImageId> {
-        [false, true].into_iter().flat_map(|denoised| {
-            Method::ALL
-                .into_iter()
-                .map(move |method| ImageId { method, denoised })
-        })
-    }
-}
-
-impl std::fmt::Display for ImageId {
-    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        f.write_str(self.method.name())?;
-        if self.denoised {
-            f.write_str(DENOISED)?;
-        }
-        Ok(())
-    }
-}
-
-impl FromStr for ImageId {
-    type Err = String;
-    fn from_str(s: &str) -> Result<ImageId, String> {
-        let (name, denoised) = match s.strip_suffix(DENOISED) {
-            Some(name) => (name, true),
-            None => (s, false),
-        };
-        Ok(ImageId {
-            method: name.parse()?,
-            denoised,
-        })
-    }
-}
-
-impl Ord for ImageId {
-    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
-        let key = |i: &ImageId| (i.method.name(), i.denoised);
-        // "a" < "a+oidn" < "a_b" by name; by (name, denoised) the same
-        // unless a name continues with a character below '+', which none does.
-        key(self).cmp(&key(other))
-    }
-}
-
-impl PartialOrd for ImageId {
-    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(other))
-    }
-}
-
-impl serde::Serialize for ImageId {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.collect_str(self)
-    }
-}
-
-impl<'de> serde::Deserialize<'de> for ImageId {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<ImageId, D::Error> {
         let name = String::deserialize(d)?;
         name.parse().map_err(serde::de::Error::custom)
     }

@@ -1,0 +1,101 @@
+//! [`MethodSet`]: the images a run makes, as one bit a method.
+
+use super::{Method, TABLE};
+
+/// A set of methods that always holds mean and filtered, which every run
+/// makes. Iterates in the canonical order of [`Method::ALL`]; in JSON a
+/// list of names. As many methods as the table has fit.
+///
+/// ```
+/// use pathdensity_core::config::{Method, MethodSet};
+/// let s: MethodSet = [Method::Rwmc].into_iter().collect();
+/// let v: Vec<Method> = s.iter().collect();
+/// assert_eq!(v, [Method::Mean, Method::Filtered, Method::Rwmc]);
+/// ```
+#[derive(Clone, Copy, PartialEq, Eq, Hash)]
+pub struct MethodSet([u64; WORDS]);
+
+/// Words of a [`MethodSet`]: one bit a method.
+const WORDS: usize = Method::COUNT.div_ceil(64);
+
+impl MethodSet {
+    const EMPTY: MethodSet = MethodSet([0; WORDS]);
+
+    /// Mean and filtered.
+    pub const CORE: MethodSet = MethodSet::EMPTY.with(Method::Mean).with(Method::Filtered);
+
+    /// Every method of the table.
+    pub const ALL: MethodSet = {
+        let mut s = MethodSet::EMPTY;
+        let mut i = 0;
+        while i < Method::COUNT {
+            s = s.with(TABLE[i].method);
+            i += 1;
+        }
+        s
+    };
+
+    /// What a run makes unless told otherwise: each row's `default`,
+    /// among the methods this build can make.
+    pub const DEFAULT: MethodSet = {
+        let mut s = MethodSet::CORE;
+        let mut i = 0;
+        while i < Method::COUNT {
+            if TABLE[i].default && TABLE[i].method.available() {
+                s = s.with(TABLE[i].method);
+            }
+            i += 1;
+        }
+        s
+    };
+
+    pub const fn contains(self, m: Method) -> bool {
+        let i = m as usize;
+        self.0[i / 64] & (1 << (i % 64)) != 0
+    }
+
+    /// This set without `m` (mean and filtered stay).
+    pub const fn without(self, m: Method) -> MethodSet {
+        let i = m as usize;
+        let mut words = self.0;
+        words[i / 64] &= !(1 << (i % 64));
+        MethodSet(words).with(Method::Mean).with(Method::Filtered)
+    }
+
+    /// This set and `m`.
+    pub const fn with(self, m: Method) -> MethodSet {
+        let i = m as usize;
+        let mut words = self.0;
+        words[i / 64] |= 1 << (i % 64);
+        MethodSet(words)
+    }
+
+    /// The methods in the canonical order.
+    pub fn iter(self) -> impl Iterator<Item = Method> {
+        Method::ALL.into_iter().filter(move |&m| self.contains(m))
+    }
+}
+
+impl FromIterator<Method> for MethodSet {
+    fn from_iter<I: IntoIterator<Item = Method>>(iter: I) -> MethodSet {
+        iter.into_iter().fold(MethodSet::CORE, MethodSet::with)
+    }
+}
+
+impl std::fmt::Debug for MethodSet {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.debug_list().entries(self.iter()).finish()
+    }
+}
+
+impl serde::Serialize for MethodSet {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(self.iter())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for MethodSet {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<MethodSet, D::Error> {
+        Ok(Vec::<Method>::deserialize(d)?.into_iter().collect())
+    }
+}
