@@ -1,7 +1,5 @@
 //! Records the git commit the binaries were built from, for the
-//! provenance in report.json ("unknown" outside a git checkout); with the
-//! `oidn` feature, lets the binaries find libOpenImageDenoise at run time
-//! where OIDN_DIR (tools/oidn/setup.sh) says it is linked from.
+//! provenance in report.json ("unknown" outside a git checkout).
 
 fn main() {
     let commit = std::process::Command::new("git")
@@ -15,12 +13,4 @@ fn main() {
     println!("cargo:rustc-env=PATHDENSITY_COMMIT={commit}");
     println!("cargo:rerun-if-changed=.git/HEAD");
     println!("cargo:rerun-if-changed=.git/refs/heads");
-
-    println!("cargo:rerun-if-env-changed=OIDN_DIR");
-    if std::env::var_os("CARGO_FEATURE_OIDN").is_some()
-        && let Some(dir) = std::env::var_os("OIDN_DIR")
-    {
-        let lib = std::path::Path::new(&dir).join("lib");
-        println!("cargo:rustc-link-arg=-Wl,-rpath,{}", lib.display());
-    }
 }

@@ -98,7 +98,7 @@ struct ConfigArgs {
     #[arg(long, default_value_t = D.exposure)]
     exposure: f64,
     /// `oidn`: also denoise every selected method's image with Intel Open
-    /// Image Denoise (METHOD+oidn; needs a build with `--features oidn`).
+    /// Image Denoise (METHOD+oidn; needs an OIDN found at run time: README, "OIDN").
     #[arg(long, default_value_t = D.denoise)]
     denoise: Denoise,
     /// Colour coordinates of the joint space: cielab (the paper's), loglab
@@ -123,7 +123,11 @@ impl From<ConfigArgs> for FilterConfig {
             white: a.white,
             recon: a.recon,
             index: a.index,
-            methods: a.methods.map_or(D.methods, |m| m.into_iter().collect()),
+            methods: a
+                .methods
+                .map_or_else(pathdensity::method::MethodSet::default_here, |m| {
+                    m.into_iter().collect()
+                }),
             alpha: a.alpha,
             bilateral_sigma_s: a.bilateral_sigma_s,
             bilateral_sigma_r: a.bilateral_sigma_r,

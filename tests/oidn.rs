@@ -1,9 +1,11 @@
-//! OIDN as a method (`--features oidn`): `oidn` and `METHOD+oidn` equal
-//! what the reference library gives through pyoidn for the same input,
-//! to 1e-5 relative, on every run; the default build refuses OIDN in one
-//! line. The OIDN build goes to target/oidn (its own feature set), with
-//! OIDN_DIR from tools/oidn/.venv (`bash tools/oidn/setup.sh`); skipped
-//! loudly without it, unless `PATHDENSITY_REQUIRE_OIDN` is set (CI sets it).
+//! OIDN as a method, loaded at run time: with `OIDN_DIR` naming the
+//! pyoidn wheel's library (tools/oidn/.venv, `bash tools/oidn/setup.sh`)
+//! `oidn` and `METHOD+oidn` equal what the reference library gives
+//! through pyoidn for the same input, to 1e-5 relative, on every run, and
+//! report.json names the library; without a library OIDN is refused in
+//! one line and the default run falls back to the statistical denoiser.
+//! Skipped loudly without the venv, unless `PATHDENSITY_REQUIRE_OIDN` is
+//! set (CI sets it).
 
 mod common;
 
@@ -39,20 +41,12 @@ fn oidn() -> Option<(PathBuf, String)> {
     }
 }
 
-fn cargo(oidn_dir: &str, args: &[&str]) {
-    let target = Path::new(ROOT).join("target/oidn");
-    let st = Command::new(env!("CARGO"))
-        .args(args)
-        .args(["--release", "--features", "oidn", "--target-dir"])
-        .arg(&target)
-        .env("OIDN_DIR", oidn_dir)
-        // The top package's binaries carry an rpath (build.rs); core's own
-        // test binary does not.
-        .env("LD_LIBRARY_PATH", Path::new(oidn_dir).join("lib"))
-        .current_dir(ROOT)
-        .status()
-        .unwrap();
-    assert!(st.success(), "cargo {args:?} --features oidn failed");
+/// The binary with `OIDN_DIR` set for it (the library is found at run
+/// time: no OIDN build).
+fn pathdensity(oidn_dir: &str) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_pathdensity"));
+    c.env("OIDN_DIR", oidn_dir).env_remove("VIRTUAL_ENV");
+    c
 }
 
 fn s(p: &Path) -> &str {
@@ -93,18 +87,6 @@ fn pyoidn(py: &Path, input: &Path, dir: &Path) -> Vec<[f64; 3]> {
 #[test]
 fn oidn_images_equal_the_reference_librarys_and_runs_repeat() {
     let Some((py, dir)) = oidn() else { return };
-    cargo(&dir, &["build", "--bin", "pathdensity"]);
-    cargo(
-        &dir,
-        &[
-            "test",
-            "-p",
-            "pathdensity-core",
-            "--lib",
-            "imagespace::oidn",
-        ],
-    );
-    let bin = Path::new(ROOT).join("target/oidn/release/pathdensity");
     let tmp = tempfile::tempdir().unwrap();
     let dump = tmp.path().join("s.pds");
     let st = Command::new(env!("CARGO_BIN_EXE_pathdensity"))
@@ -126,7 +108,7 @@ fn oidn_images_equal_the_reference_librarys_and_runs_repeat() {
         .unwrap();
     assert!(st.success());
     let run = |out: &Path, threads: &str| {
-        let o = Command::new(&bin)
+        let o = pathdensity(&dir)
             .args([
                 "filter",
                 s(&dump),
@@ -214,13 +196,12 @@ fn oidn_images_equal_the_reference_librarys_and_runs_repeat() {
     }
 }
 
-/// In a build with OIDN the default run makes guided_oidn and recommends
-/// it: first row of the table, `"recommended"` in report.json.
+/// When OIDN is found the default run makes guided_oidn and recommends
+/// it: first row of the table, `"recommended"` in report.json, and the
+/// summary and report.json name the library.
 #[test]
-fn oidn_builds_recommend_guided_oidn() {
+fn a_found_oidn_makes_guided_oidn_the_recommended_image() {
     let Some((_, dir)) = oidn() else { return };
-    cargo(&dir, &["build", "--bin", "pathdensity"]);
-    let bin = Path::new(ROOT).join("target/oidn/release/pathdensity");
     let tmp = tempfile::tempdir().unwrap();
     let dump = tmp.path().join("s.pds");
     let synth = Command::new(env!("CARGO_BIN_EXE_pathdensity"))
@@ -230,7 +211,7 @@ fn oidn_builds_recommend_guided_oidn() {
         .unwrap();
     assert!(synth.success());
     let out = tmp.path().join("o");
-    let o = Command::new(&bin)
+    let o = pathdensity(&dir)
         .args(["filter", s(&dump), "-o", s(&out), "--no-html"])
         .output()
         .unwrap();
@@ -245,6 +226,12 @@ fn oidn_builds_recommend_guided_oidn() {
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(report["recommended"], "guided_oidn");
+    let denoiser = report["denoiser"].as_str().unwrap_or_default();
+    assert!(
+        denoiser.starts_with("OIDN 2.") && denoiser.contains("libOpenImageDenoise"),
+        "report.json's denoiser: {denoiser:?}"
+    );
+    assert!(table.contains(&format!("denoiser: {denoiser}")), "{table}");
     assert!(
         !out.join("oidn.exr").exists(),
         "plain oidn is not a default"
@@ -267,7 +254,7 @@ fn oidn_builds_recommend_guided_oidn() {
         .iter()
         .map(|&aux| {
             let out = tmp.path().join(format!("aux-{aux}"));
-            let mut c = Command::new(&bin);
+            let mut c = pathdensity(&dir);
             c.args([
                 "filter",
                 s(&dump),
@@ -292,35 +279,29 @@ fn oidn_builds_recommend_guided_oidn() {
     assert_ne!(runs[0], runs[1], "the albedo changes OIDN's image");
 }
 
+/// Without a library (`OIDN_DIR` naming a folder without one) every
+/// OIDN option is refused in one line that says where it looked, and the
+/// default run recommends `guided`, made with the statistical denoiser,
+/// and says so.
 #[test]
-fn the_default_build_refuses_oidn_in_one_line() {
+fn without_oidn_its_options_are_refused_and_guided_is_recommended() {
     let tmp = tempfile::tempdir().unwrap();
+    let empty = tmp.path().join("no-oidn");
+    std::fs::create_dir(&empty).unwrap();
     let dump = tmp.path().join("s.pds");
-    let bin = env!("CARGO_BIN_EXE_pathdensity");
-    assert!(
-        Command::new(bin)
-            .args([
-                "synth",
-                "-o",
-                s(&dump),
-                "--width",
-                "8",
-                "--height",
-                "8",
-                "--spp",
-                "4"
-            ])
-            .status()
-            .unwrap()
-            .success()
-    );
+    let st = Command::new(env!("CARGO_BIN_EXE_pathdensity"))
+        .args(["synth", "-o", s(&dump), "--width", "12", "--height", "10"])
+        .args(["--spp", "8", "--light", "3,4,1,40"])
+        .status()
+        .unwrap();
+    assert!(st.success());
     for args in [
         ["--methods", "oidn"],
         ["--methods", "oidn_ci"],
         ["--denoise", "oidn"],
         ["--albedo", "albedo.exr"],
     ] {
-        let o = Command::new(bin)
+        let o = pathdensity(s(&empty))
             .args(["filter", s(&dump), "-o", s(&tmp.path().join("o"))])
             .args(args)
             .output()
@@ -329,8 +310,26 @@ fn the_default_build_refuses_oidn_in_one_line() {
         assert_eq!(o.status.code(), Some(2), "{err}");
         assert_eq!(err.trim_end().lines().count(), 1, "{err}");
         assert!(
-            err.contains("--features oidn") && err.contains(args[0]),
+            err.contains("OIDN_DIR") && err.contains(s(&empty)) && err.contains(args[0]),
             "{err}"
         );
+        assert!(!tmp.path().join("o").exists(), "a refused run wrote {err}");
     }
+    let out = tmp.path().join("d");
+    let o = pathdensity(s(&empty))
+        .args(["filter", s(&dump), "-o", s(&out), "--no-html"])
+        .output()
+        .unwrap();
+    let table = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["recommended"], "guided", "{table}");
+    let denoiser = report["denoiser"].as_str().unwrap_or_default();
+    assert!(
+        denoiser.starts_with("statmc") && denoiser.contains("OIDN_DIR"),
+        "report.json's denoiser: {denoiser:?}"
+    );
+    assert!(table.contains(&format!("denoiser: {denoiser}")), "{table}");
+    assert!(!out.join("guided_oidn.exr").exists() && out.join("guided.exr").exists());
 }

@@ -216,12 +216,10 @@ fn read_aux(
         }
         return Ok(None);
     };
-    if !oidn::AVAILABLE {
+    if let Err(why) = oidn::library() {
         return Err(crate::config::ConfigError {
             field: "albedo",
-            problem: "is OIDN's input, and this build has none: build with `--features oidn` \
-                      after `bash tools/oidn/setup.sh` (README, \"OIDN\")"
-                .into(),
+            problem: format!("is OIDN's input, and {why} (README, \"OIDN\")"),
         }
         .into());
     }
@@ -338,6 +336,7 @@ fn write_outputs(
         metrics: run.metrics.clone(),
         recommended: pipeline::recommended(&run.images),
         reference: opts.reference.as_ref().map(|p| p.display().to_string()),
+        denoiser: crate::report::denoiser(&run.config),
         albedo: opts.albedo.as_ref().map(|p| p.display().to_string()),
         normal: opts.normal.as_ref().map(|p| p.display().to_string()),
         method_seconds: run.images.iter().map(|e| (e.id(), e.seconds)).collect(),

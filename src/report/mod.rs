@@ -69,6 +69,11 @@ pub struct FilterReport {
     /// of the printed table.
     pub recommended: Option<ImageId>,
     pub reference: Option<String>,
+    /// The denoiser the denoised images were made with: `OIDN 2.5.1
+    /// (PATH)`, or `statmc` and why no OIDN was used ([`denoiser`]);
+    /// absent when no image of the run is denoised.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub denoiser: Option<String>,
     /// OIDN's auxiliary images, when given.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub albedo: Option<String>,
@@ -119,6 +124,31 @@ pub struct Provenance {
     pub reference_xxh3: Option<String>,
     /// When the run started, seconds since 1970-01-01 UTC.
     pub started_unix_seconds: u64,
+}
+
+/// Which denoiser a run with `config` used, in one phrase for the
+/// summary and report.json: OIDN (its version and file) when an image
+/// needs it, else the statistical denoiser and why OIDN was not used
+/// (not asked for, or not found); `None` when no image is denoised.
+pub fn denoiser(config: &FilterConfig) -> Option<String> {
+    use crate::imagespace::oidn;
+    use crate::method::Piece;
+    if config.denoise == crate::config::Denoise::Oidn
+        || config.methods.iter().any(|m| m.needs_oidn())
+    {
+        return oidn::library().ok().map(|l| l.describe());
+    }
+    if !config
+        .methods
+        .iter()
+        .any(|m| Piece::of(m).contains(&Piece::Statmc))
+    {
+        return None;
+    }
+    Some(match oidn::library() {
+        Ok(_) => "statmc (OIDN found but not asked for: --methods)".to_string(),
+        Err(why) => format!("statmc, the statistical denoiser ({why})"),
+    })
 }
 
 impl FilterReport {
@@ -191,6 +221,9 @@ impl FilterReport {
         }
         if let Some(r) = &self.recommended {
             s += &format!("  (use) {r}: the recommended image (README, \"Which image to use\")\n");
+        }
+        if let Some(d) = &self.denoiser {
+            s += &format!("  denoiser: {d}\n");
         }
         for n in self.notes() {
             s += &format!("  {n}\n");

@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
-# Installs Intel Open Image Denoise for `--features oidn`: the PyPI wheel
-# pyoidn (OIDN 2.5 with its CPU device and TBB) into tools/oidn/.venv. Debian
-# has no OIDN package. Prints the OIDN_DIR to build with; safe to rerun.
+# Installs Intel Open Image Denoise for pathdensity, which loads it at run
+# time: the PyPI wheel pyoidn (OIDN 2.5 with its CPU device and TBB) into
+# tools/oidn/.venv. Debian has no OIDN package. Prints the OIDN_DIR that
+# points pathdensity at it; safe to rerun.
 #
 #   eval "$(bash tools/oidn/setup.sh)"      # exports OIDN_DIR
-#   cargo build --release --features oidn   # binaries find the library by rpath
+#   pathdensity filter DUMP -o OUT          # says "denoiser: OIDN 2.5.1 (...)"
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 venv="$here/.venv"

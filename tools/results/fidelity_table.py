@@ -6,14 +6,15 @@ the reference, and a table per metric of each method's score relative to
 the mean's and to OIDN's (lower is better), with the worst and the
 geometric mean over the dumps.
 
-    python3 tools/results/fidelity_table.py DUMPS [--bin target/oidn/release/pathdensity]
+    python3 tools/results/fidelity_table.py DUMPS [--bin target/release/pathdensity]
         [--methods a,b,…] [--extra "--guide-z 2"] [--csv OUT.csv]
 """
 import argparse, csv, glob, json, math, os, re, subprocess, sys, tempfile
 
 p = argparse.ArgumentParser()
 p.add_argument("dumps")
-p.add_argument("--bin", default="target/oidn/release/pathdensity")
+p.add_argument("--bin", default="target/release/pathdensity",
+               help="OIDN is found as README's \"OIDN\" says: eval \"$(bash tools/oidn/setup.sh)\" first")
 p.add_argument("--methods", default="filtered,filtered_energy,filtered_energy_bilateral_ci,oidn,oidn_ci,guided,guided_oidn")
 p.add_argument("--extra", default="")
 p.add_argument("--csv")

@@ -4,7 +4,7 @@
 # SIZE² (default 128) pixels: mean, filtered, filtered_energy, clamp at each
 # of CLAMPS (default "3 10 30"), oidn, the two recommended images
 # (oidn_ci, filtered_energy_bilateral_ci), and METHOD+oidn for each. Needs the
-# OIDN build (bash tools/oidn/setup.sh; this script builds target/oidn) and
+# OIDN library (bash tools/oidn/setup.sh; this script sets OIDN_DIR) and
 # Mitsuba (bash tools/mitsuba/setup.sh). Writes OUT/oidn.csv (default
 # out/oidn) and prints a markdown table per spp.
 set -euo pipefail
@@ -20,8 +20,8 @@ mi_ref_spp=${MI_REF_SPP:-4096}
 out=${OUT:-out/oidn}
 eval "$(bash tools/oidn/setup.sh)"
 cargo build --release --quiet --bin render
-cargo build --release --quiet --features oidn --target-dir target/oidn --bin pathdensity
-pd=target/oidn/release/pathdensity
+cargo build --release --quiet --bin pathdensity
+pd=target/release/pathdensity
 py=tools/mitsuba/.venv/bin/python
 mkdir -p "$out"
 csv="$out/oidn.csv"

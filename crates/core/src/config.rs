@@ -222,15 +222,15 @@ impl FilterConfig {
                 );
             }
         }
-        if !crate::imagespace::oidn::AVAILABLE {
-            let why = "needs OIDN, and this build has none: build with `--features oidn` \
-                       after `bash tools/oidn/setup.sh` (README, \"OIDN\")";
-            if let Some(m) = self.methods.iter().find(|m| m.needs_oidn()) {
-                return bad("methods", format!("{m} {why}"));
-            }
-            if self.denoise == Denoise::Oidn {
-                return bad("denoise", format!("oidn {why}"));
-            }
+        let oidn_wanted = self.methods.iter().find(|m| m.needs_oidn());
+        if (oidn_wanted.is_some() || self.denoise == Denoise::Oidn)
+            && let Err(none) = crate::imagespace::oidn::library()
+        {
+            let why = format!("needs OIDN, and {none} (README, \"OIDN\")");
+            return match oidn_wanted {
+                Some(m) => bad("methods", format!("{m} {why}")),
+                None => bad("denoise", format!("oidn {why}")),
+            };
         }
         if !(0.0..0.5).contains(&self.alpha) {
             return bad("alpha", format!("must lie in [0, 0.5), got {}", self.alpha));

@@ -46,23 +46,22 @@ pub enum Method {
     Clamp,
     /// filtered_energy, then the bilateral filter, held per pixel and
     /// channel inside the confidence interval of the pixel's mean
-    /// ([`crate::recon::confidence`]): the pure-Rust build's recommended
-    /// image.
+    /// ([`crate::recon::confidence`]).
     FilteredEnergyBilateralCi,
     /// Intel Open Image Denoise's `RT` filter on the mean
-    /// ([`crate::imagespace::oidn`]; only in builds with the `oidn` feature).
+    /// ([`crate::imagespace::oidn`]; needs OIDN found at run time).
     Oidn,
     /// OIDN's image of the mean held, per pixel and channel, inside the
     /// confidence interval of the pixel's mean
-    /// ([`crate::recon::confidence`]; only with the `oidn` feature).
+    /// ([`crate::recon::confidence`]; needs OIDN).
     OidnCi,
     /// The density-guided image ([`crate::recon::guided`]): statmc with
     /// the removed energy spread back where the pixel is noise, the
     /// accepted samples' mean where they vouch for more, never above what
-    /// all its samples allow. The pure-Rust build's recommended image.
+    /// all its samples allow. The recommended image where no OIDN is found.
     Guided,
-    /// The same with OIDN's image of the mean as the denoiser (only with
-    /// the `oidn` feature).
+    /// The same with OIDN's image of the mean as the denoiser (needs
+    /// OIDN; the recommended image where it is found).
     GuidedOidn,
     /// The statistical denoiser ([`crate::recon::statmc`], Sakai et al.
     /// 2024) on the accepted samples.
@@ -77,7 +76,8 @@ pub struct Needs {
     pub decisions: bool,
     /// The white luminance (docs/filter.md §1): the bilateral filter's ΔE.
     pub white: bool,
-    /// Intel Open Image Denoise (a build with the `oidn` feature).
+    /// Intel Open Image Denoise, found at run time
+    /// ([`crate::imagespace::oidn::library`]).
     pub oidn: bool,
 }
 
@@ -192,7 +192,7 @@ pub struct Row {
     pub pieces: &'static [Piece],
     pub role: Role,
     /// Made unless `--methods` says otherwise (a method that needs OIDN
-    /// only in builds that have it).
+    /// only where OIDN is found: [`super::MethodSet::default_here`]).
     pub default: bool,
     /// Its rank as the image a user should use, 0 first: the first of the
     /// ranked images a run made is its `recommended` image. Chosen by
@@ -424,9 +424,10 @@ impl Method {
         self.row().needs.oidn
     }
 
-    /// Whether this build can make the image.
-    pub const fn available(self) -> bool {
-        !self.needs_oidn() || crate::imagespace::oidn::AVAILABLE
+    /// Whether this process can make the image (OIDN is found at run
+    /// time: [`crate::imagespace::oidn::library`]).
+    pub fn available(self) -> bool {
+        !self.needs_oidn() || crate::imagespace::oidn::available()
     }
 
     /// The methods that can be recommended, most preferred first.

@@ -35,19 +35,30 @@ impl MethodSet {
         s
     };
 
-    /// What a run makes unless told otherwise: each row's `default`,
-    /// among the methods this build can make.
+    /// What a run makes unless told otherwise, wherever it runs: each
+    /// row's `default` that needs no OIDN. [`MethodSet::default_here`]
+    /// adds the OIDN rows when this process finds OIDN.
     pub const DEFAULT: MethodSet = {
         let mut s = MethodSet::CORE;
         let mut i = 0;
         while i < Method::COUNT {
-            if TABLE[i].default && TABLE[i].method.available() {
+            if TABLE[i].default && !TABLE[i].needs.oidn {
                 s = s.with(TABLE[i].method);
             }
             i += 1;
         }
         s
     };
+
+    /// [`MethodSet::DEFAULT`], and the default rows that need OIDN when
+    /// this process finds it ([`crate::imagespace::oidn::library`]): what
+    /// the commands make when no `--methods` is given.
+    pub fn default_here() -> MethodSet {
+        TABLE
+            .iter()
+            .filter(|r| r.default && r.method.available())
+            .fold(MethodSet::DEFAULT, |s, r| s.with(r.method))
+    }
 
     pub const fn contains(self, m: Method) -> bool {
         let i = m as usize;

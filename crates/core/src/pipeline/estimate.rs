@@ -511,7 +511,7 @@ mod tests {
             want.sort_by_key(|p| Piece::ALL.iter().position(|q| q == p));
             match made {
                 Ok(_) => assert_eq!(estimators.made(), want, "{method:?}"),
-                // OIDN's methods without the `oidn` feature: they stop at
+                // OIDN's methods where no OIDN is found: they stop at
                 // the piece that failed, which keeps the error.
                 Err(_) => {
                     let made = estimators.made();

@@ -429,10 +429,7 @@ mod tests {
         };
         let (records, h): (Vec<Record>, Header) = (synth.records().collect(), synth.header());
         let config = FilterConfig {
-            methods: Method::ALL
-                .into_iter()
-                .filter(|m| !m.needs_oidn() || crate::imagespace::oidn::AVAILABLE)
-                .collect(),
+            methods: Method::ALL.into_iter().filter(|m| m.available()).collect(),
             ..FilterConfig::DEFAULT
         };
         let white = resolve_white(&config, &records, &h).unwrap();
