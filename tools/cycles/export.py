@@ -393,10 +393,10 @@ class Positions:
         self.ix = (px % width).astype(np.float64)
         self.iy = (px // width).astype(np.float64)
         self.clamped = 0
-        self.missing = 0
+        self.probed = 0
         self.worst = 0.0
 
-    def place(self, direction, projection, k):
+    def place(self, direction, projection, k, counted=slice(None)):
         d = direction.reshape(-1, 3).astype(np.float64)
         length = np.linalg.norm(d, axis=1)
         missing = length == 0.0
@@ -427,9 +427,8 @@ class Positions:
         hi_y = np.nextafter(np.float32(self.iy + 1), np.float32(0))
         cx = np.clip(fx, lo_x, hi_x)
         cy = np.clip(fy, lo_y, hi_y)
-        self.clamped += int(np.count_nonzero((cx != fx) | (cy != fy)))
-        self.missing += int(np.count_nonzero(missing))
-        return cx, cy
+        self.clamped += int(np.count_nonzero(((cx != fx) | (cy != fy))[counted]))
+        return cx, cy, missing
 
 
 def colour(passes, matrix):
@@ -447,6 +446,13 @@ def export_dump(renderer, args, scene, name, matrix):
     centre_y = (np.arange(pixels) // w + 0.5).astype(np.float32)
     producer = (f"tools/cycles/export.py (Blender {renderer.bpy.app.version_string}, "
                 f"{args.route} route)")
+
+    def index(k):
+        if args.order == "pass":
+            return np.arange(k * pixels, (k + 1) * pixels)
+        return np.arange(pixels) * args.spp + k
+
+    unplaced = {}  # sample k -> the pixels whose sample k had no direction
     with pds.Presized(args.out, pixels * args.spp, w, h, frames=1, spp=args.spp,
                       order=args.order, scene=name, seed=args.seed, producer=producer) as out:
         for k in range(args.spp):
@@ -454,19 +460,60 @@ def export_dump(renderer, args, scene, name, matrix):
                 passes = renderer.render(args.spp, args.seed, offset=k)
                 if AOV not in passes:
                     raise ExportError(f"Cycles wrote no {AOV!r} pass")
-                x, y = positions.place(passes[AOV][..., :3], projection, k)
+                x, y, missing = positions.place(passes[AOV][..., :3], projection, k)
+                if missing.any():
+                    unplaced[k] = np.flatnonzero(missing)
             else:
-                seed = args.seed + k
-                passes = renderer.render(1, seed)
+                passes = renderer.render(1, args.seed + k)
                 x, y = centre_x, centre_y
             rgb = colour(passes, matrix)
-            records = np.column_stack([x, y, np.zeros(pixels, np.float32), rgb])
-            if args.order == "pass":
-                out[k * pixels:(k + 1) * pixels] = records
-            else:
-                out[np.arange(pixels) * args.spp + k] = records
+            out[index(k)] = np.column_stack([x, y, np.zeros(pixels, np.float32), rgb])
             progress.advance()
+        if unplaced:
+            probe(renderer, args, scene, positions, projection, unplaced, out, index)
     return positions
+
+
+def probe(renderer, args, scene, positions, projection, unplaced, out, index):
+    """Film positions for the samples whose camera ray ended where no AOV is
+    written (a light seen directly, an object without a material, nothing
+    under a transparent film). Where a sample lands in its pixel depends only
+    on the pixel, the seed, N and k (Cycles' PRNG_FILTER dimension), not on
+    the scene: render the same samples again with every object hidden from
+    the camera, so that every camera ray reaches the world and its AOV."""
+    bpy = renderer.bpy
+    if scene.world is None:
+        scene.world = bpy.data.worlds.new("pds_probe")
+    world = scene.world
+    if not any(n.bl_idname == "ShaderNodeOutputAOV" for n in world.node_tree.nodes):
+        geo = world.node_tree.nodes.new("ShaderNodeNewGeometry")
+        aov = world.node_tree.nodes.new("ShaderNodeOutputAOV")
+        aov.aov_name = AOV
+        world.node_tree.links.new(geo.outputs["Incoming"], aov.inputs["Color"])
+    saved = scene.render.film_transparent, {obj.name: obj.visible_camera for obj in scene.objects}
+    scene.render.film_transparent = False
+    for obj in scene.objects:
+        obj.visible_camera = False
+    try:
+        probe_renders(renderer, args, positions, projection, unplaced, out, index)
+    finally:
+        scene.render.film_transparent = saved[0]
+        for obj in scene.objects:
+            obj.visible_camera = saved[1][obj.name]
+
+
+def probe_renders(renderer, args, positions, projection, unplaced, out, index):
+    progress = Progress("probe renders", len(unplaced))
+    for k, where in unplaced.items():
+        passes = renderer.render(args.spp, args.seed, offset=k)
+        x, y, missing = positions.place(passes[AOV][..., :3], projection, k, where)
+        if missing[where].any():
+            raise ExportError(f"sample {k}: the probe render has no direction either")
+        records = np.asarray(out.array[index(k)[where]])
+        records["x"], records["y"] = x[where], y[where]
+        out[index(k)[where]] = records
+        progress.advance()
+    positions.probed = sum(len(v) for v in unplaced.values())
 
 
 def image_of(passes, name, matrix, h, w):
@@ -516,8 +563,8 @@ def main(argv):
             extra = ""
             if args.route == "subset":
                 extra = (f"; {positions.clamped} positions clamped into their pixel (worst "
-                         f"{positions.worst:.2e} px out), {positions.missing} without a direction "
-                         "(at the pixel centre)")
+                         f"{positions.worst:.2e} px out), {positions.probed} placed by the probe "
+                         "(no direction: a light or nothing seen)")
             print(f"{args.out}: {w * h * args.spp} samples, {w}x{h} at {args.spp} spp, "
                   f"{args.route} route, {renderer.count} renders in {seconds:.2f} s "
                   f"({renderer.seconds / max(renderer.count, 1):.3f} s per render), "
