@@ -126,30 +126,7 @@ pub struct Provenance {
     pub started_unix_seconds: u64,
 }
 
-/// Which denoiser a run with `config` used, in one phrase for the
-/// summary and report.json: OIDN (its version and file) when an image
-/// needs it, else the statistical denoiser and why OIDN was not used
-/// (not asked for, or not found); `None` when no image is denoised.
-pub fn denoiser(config: &FilterConfig) -> Option<String> {
-    use crate::imagespace::oidn;
-    use crate::method::Piece;
-    if config.denoise == crate::config::Denoise::Oidn
-        || config.methods.iter().any(|m| m.needs_oidn())
-    {
-        return oidn::library().ok().map(|l| l.describe());
-    }
-    if !config
-        .methods
-        .iter()
-        .any(|m| Piece::of(m).contains(&Piece::Statmc))
-    {
-        return None;
-    }
-    Some(match oidn::library() {
-        Ok(_) => "statmc (OIDN found but not asked for: --methods)".to_string(),
-        Err(why) => format!("statmc, the statistical denoiser ({why})"),
-    })
-}
+pub use crate::pipeline::denoiser;
 
 impl FilterReport {
     /// The short table the `filter` command prints.

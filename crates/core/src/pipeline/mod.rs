@@ -97,6 +97,29 @@ pub fn recommended(images: &[MethodImage]) -> Option<ImageId> {
         .map(ImageId::from)
 }
 
+/// Which denoiser a run with `config` used, in one phrase for the
+/// summary and report.json: OIDN (its version and file) when an image
+/// needs it, else the statistical denoiser and why OIDN was not used
+/// (not asked for, or not found); `None` when no image is denoised.
+pub fn denoiser(config: &FilterConfig) -> Option<String> {
+    use crate::imagespace::oidn;
+    use crate::method::Piece;
+    if config.denoise == Denoise::Oidn || config.methods.iter().any(|m| m.needs_oidn()) {
+        return oidn::library().ok().map(|l| l.describe());
+    }
+    if !config
+        .methods
+        .iter()
+        .any(|m| Piece::of(m).contains(&Piece::Statmc))
+    {
+        return None;
+    }
+    Some(match oidn::library() {
+        Ok(_) => "statmc (OIDN found but not asked for: --methods)".to_string(),
+        Err(why) => format!("statmc, the statistical denoiser ({why})"),
+    })
+}
+
 /// The images a configuration makes, in order: every selected method, and
 /// with `denoise` OIDN on each of them too (`oidn` is the mean's, so there
 /// is no `mean+oidn`, and `oidn_ci` is denoised already).
