@@ -246,6 +246,18 @@ fn the_bytes_do_not_depend_on_threads_and_the_orders_agree() {
             "record {i}"
         );
     }
+    // The positions come from a probe render (the scene hidden from the
+    // camera); measured instead from an AOV in every material of the
+    // scene's own renders, they agree to float rounding, with the same values.
+    run("aov.pds", &["--positions", "aov"]);
+    let aov = DumpReader::open(dir.path().join("aov.pds")).unwrap();
+    for (i, (a, p)) in aov.records().iter().zip(pass.records()).enumerate() {
+        assert_eq!(a.rgb(), p.rgb(), "record {i}");
+        assert!(
+            (a.x - p.x).abs() < 1e-4 && (a.y - p.y).abs() < 1e-4,
+            "record {i}: {a:?} {p:?}"
+        );
+    }
     // The seed route: every record at its pixel's centre.
     run("seed.pds", &["--route", "seed"]);
     let seed = DumpReader::open(dir.path().join("seed.pds")).unwrap();

@@ -2,7 +2,7 @@
 """Export Blender Cycles' own camera samples as a pathdensity dump (.pds).
 
     export.py SCENE -o OUT.pds --spp N [--seed S] [--size WxH] [--order pixel|pass]
-              [--route subset|seed] [--threads T]
+              [--route subset|seed] [--positions probe|aov] [--threads T]
               [--reference-spp M --reference-out REF.exr]
               [--albedo-out A.exr] [--normal-out N.exr] [--film-out F.exr]
 
@@ -12,11 +12,14 @@ highlight, room, textured). Run it with tools/cycles/.venv/bin/python.
 The subset route (default) renders sample k of Cycles' own N-sample
 sequence, for k = 0 .. N-1, one render each (`use_sample_subset`,
 `sample_subset_length = 1`, `sample_offset = k`): every render holds exactly
-one sample per pixel, the one Cycles' N-sample render would have added. A
-vector AOV ("pds_dir", fed by Geometry > Incoming, added to every material
-and the world) carries each sample's camera-ray direction, which the
-pinhole camera projects back to the film position the ray came from. The
-seed route renders N times at 1 sample with seed S + k: exact positions (a
+one sample per pixel, the one Cycles' N-sample render would have added.
+The film position of a sample is in no pass: a second render of the same
+sample, with the scene hidden from the camera, gives every camera ray's
+direction in a vector AOV ("pds_dir", Geometry > Incoming in the world's
+shader), which the pinhole camera projects back to the film position the
+ray came from (where a sample falls in its pixel does not depend on the
+scene). `--positions aov` measures it in the scene's own renders instead,
+from the AOV added to every material, as a cross-check. The seed route renders N times at 1 sample with seed S + k: exact positions (a
 1-sample render's sample sits at the pixel centre) but point-sampled.
 
 Settings that would alter or correlate samples are forced (docs/renderers.md):
@@ -85,6 +88,12 @@ def arguments(argv):
                    help="subset (default): Cycles' own N-sample sequence, one sample per "
                         "render, positions from an AOV; seed: N 1-sample renders with seeds "
                         "S + k, records at pixel centres")
+    p.add_argument("--positions", choices=("probe", "aov"), default="probe",
+                   help="subset route: where the film positions come from. probe (default): "
+                        "a second render of each sample with the scene hidden from the camera "
+                        "(the dump's renders are of the scene as it is); aov: measured from a "
+                        "direction AOV added to every material, probing only what no material "
+                        "saw (a cross-check)")
     p.add_argument("--threads", type=positive, help="Cycles' threads (default: all cores)")
     p.add_argument("--reference-spp", type=positive, help="samples per pixel of the reference")
     p.add_argument("--reference-out", help="the reference EXR to write (a plain Cycles render, "
@@ -292,23 +301,30 @@ def force_settings(bpy, scene, args):
     return active
 
 
-def add_direction_aov(bpy, scene, layer):
-    """Geometry > Incoming into a vector AOV in every material and the world:
-    the camera ray's direction (negated) wherever a camera ray ends."""
+def add_direction_aov(bpy, layer, materials):
+    """Registers the vector AOV; with `materials`, Geometry > Incoming feeds it
+    in every material: the camera ray's direction (negated) where it ends.
+    Never in the world's shader of the renders that make the dump: a
+    Geometry node there makes Cycles build an importance map for the world
+    light, which changes its sampling, so the values (measured on
+    `highlight`: 572 of 1024 pixels of a 1-sample render changed)."""
     if AOV not in [a.name for a in layer.aovs]:
         aov = layer.aovs.add()
         aov.name = AOV
     layer.aovs[AOV].type = "COLOR"
-    trees = [m.node_tree for m in bpy.data.materials if m.node_tree is not None]
-    if scene.world is not None and scene.world.node_tree is not None:
-        trees.append(scene.world.node_tree)
-    for nt in trees:
-        geo = nt.nodes.new("ShaderNodeNewGeometry")
-        out = nt.nodes.new("ShaderNodeOutputAOV")
-        out.aov_name = AOV
-        nt.links.new(geo.outputs["Incoming"], out.inputs["Color"])
-    # Objects without a material would render with Cycles' default surface
-    # and no AOV; the samples that hit them are counted (no direction).
+    if not materials:
+        return
+    for m in bpy.data.materials:
+        if m.node_tree is not None:
+            _direction_nodes(m.node_tree)
+
+
+def _direction_nodes(nt):
+    geo = nt.nodes.new("ShaderNodeNewGeometry")
+    out = nt.nodes.new("ShaderNodeOutputAOV")
+    out.aov_name = AOV
+    nt.links.new(geo.outputs["Incoming"], out.inputs["Color"])
+    return geo, out
 
 
 # ---------------------------------------------------------------- rendering
@@ -458,9 +474,12 @@ def export_dump(renderer, args, scene, name, matrix):
         for k in range(args.spp):
             if args.route == "subset":
                 passes = renderer.render(args.spp, args.seed, offset=k)
-                if AOV not in passes:
-                    raise ExportError(f"Cycles wrote no {AOV!r} pass")
-                x, y, missing = positions.place(passes[AOV][..., :3], projection, k)
+                if args.positions == "aov":
+                    if AOV not in passes:
+                        raise ExportError(f"Cycles wrote no {AOV!r} pass")
+                    x, y, missing = positions.place(passes[AOV][..., :3], projection, k)
+                else:
+                    x, y, missing = centre_x, centre_y, np.ones(pixels, bool)
                 if missing.any():
                     unplaced[k] = np.flatnonzero(missing)
             else:
@@ -475,31 +494,39 @@ def export_dump(renderer, args, scene, name, matrix):
 
 
 def probe(renderer, args, scene, positions, projection, unplaced, out, index):
-    """Film positions for the samples whose camera ray ended where no AOV is
-    written (a light seen directly, an object without a material, nothing
-    under a transparent film). Where a sample lands in its pixel depends only
-    on the pixel, the seed, N and k (Cycles' PRNG_FILTER dimension), not on
-    the scene: render the same samples again with every object hidden from
-    the camera, so that every camera ray reaches the world and its AOV."""
+    """Film positions for the samples that have none: all of them with
+    `--positions probe`, else those whose camera ray ended where no material
+    writes the AOV (the world, a light seen directly, an object without a
+    material). Where a sample lands in its pixel depends only on the pixel,
+    the seed, N and k (Cycles' PRNG_FILTER dimension), not on the scene, so
+    the same samples are rendered again with the camera's clipping range
+    shrunk to nothing and every object hidden from the camera: every camera
+    ray then reaches the world, whose shader writes the AOV for these
+    renders only. Everything is put back afterwards."""
     bpy = renderer.bpy
-    if scene.world is None:
+    cam = scene.camera.data
+    made_world = scene.world is None
+    if made_world:
         scene.world = bpy.data.worlds.new("pds_probe")
     world = scene.world
-    if not any(n.bl_idname == "ShaderNodeOutputAOV" for n in world.node_tree.nodes):
-        geo = world.node_tree.nodes.new("ShaderNodeNewGeometry")
-        aov = world.node_tree.nodes.new("ShaderNodeOutputAOV")
-        aov.aov_name = AOV
-        world.node_tree.links.new(geo.outputs["Incoming"], aov.inputs["Color"])
-    saved = scene.render.film_transparent, {obj.name: obj.visible_camera for obj in scene.objects}
+    nodes = _direction_nodes(world.node_tree)
+    saved = (scene.render.film_transparent, cam.clip_start, cam.clip_end,
+             {obj.name: obj.visible_camera for obj in scene.objects})
     scene.render.film_transparent = False
+    cam.clip_end = cam.clip_start * (1.0 + 1e-6)
     for obj in scene.objects:
         obj.visible_camera = False
     try:
         probe_renders(renderer, args, positions, projection, unplaced, out, index)
     finally:
-        scene.render.film_transparent = saved[0]
+        scene.render.film_transparent, cam.clip_start, cam.clip_end = saved[:3]
         for obj in scene.objects:
-            obj.visible_camera = saved[1][obj.name]
+            obj.visible_camera = saved[3][obj.name]
+        for n in nodes:
+            world.node_tree.nodes.remove(n)
+        if made_world:
+            scene.world = None
+            bpy.data.worlds.remove(world)
 
 
 def probe_renders(renderer, args, positions, projection, unplaced, out, index):
@@ -551,7 +578,7 @@ def main(argv):
         space, matrix = colour_matrix(bpy, scene, args)
         layer = force_settings(bpy, scene, args)
         if args.route == "subset":
-            add_direction_aov(bpy, scene, layer)
+            add_direction_aov(bpy, layer, materials=args.positions == "aov")
         layer.update()  # matrix_world of objects moved by a script
         renderer = Renderer(bpy, scene, layer, workdir, log)
         w, h = scene.render.resolution_x, scene.render.resolution_y
@@ -563,8 +590,9 @@ def main(argv):
             extra = ""
             if args.route == "subset":
                 extra = (f"; {positions.clamped} positions clamped into their pixel (worst "
-                         f"{positions.worst:.2e} px out), {positions.probed} placed by the probe "
-                         "(no direction: a light or nothing seen)")
+                         f"{positions.worst:.2e} px out), positions: {positions.probed} from the probe"
+                         + (f", {w * h * args.spp - positions.probed} from the materials' AOV"
+                            if args.positions == "aov" else ""))
             print(f"{args.out}: {w * h * args.spp} samples, {w}x{h} at {args.spp} spp, "
                   f"{args.route} route, {renderer.count} renders in {seconds:.2f} s "
                   f"({renderer.seconds / max(renderer.count, 1):.3f} s per render), "

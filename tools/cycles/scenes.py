@@ -6,7 +6,7 @@ carry most of the light: the fireflies the filter is for.
 | name | what makes fireflies |
 | --- | --- |
 | caustic | a glass ball under a small bright light: its caustic on a diffuse floor is found only by floor -> glass -> light paths |
-| highlight | a tiny, intense emitter seen only in a glossy floor, next to diffuse -> glossy -> emitter paths |
+| highlight | a tiny, intense sphere light seen directly and in a glossy floor, next to diffuse -> glossy -> light paths |
 | room | a closed room lit through a narrow gap in its ceiling by a light outside: everything inside is indirect |
 | textured | a checker-and-noise textured floor under a small, bright point light, with a glossy ball |
 
@@ -128,10 +128,11 @@ def highlight():
           size=8)
     _mesh(bpy.ops.mesh.primitive_cube_add, _material("wall", "diffuse", (0.6, 0.5, 0.4)),
           size=1.0, location=(-1.2, 0.8, 0.5))
-    # A tiny, intense emitter: seen directly it is a few pixels; in the floor a highlight.
-    _mesh(bpy.ops.mesh.primitive_uv_sphere_add,
-          _material("bulb", "emission", (0.3, 0.5, 1.0), strength=4000.0),
-          radius=0.03, location=(0.6, 1.8, 0.6), segments=16, ring_count=8)
+    # A tiny, intense light, seen directly (a few pixels) and in the floor (a
+    # highlight). A sphere light, not an emissive mesh: a scene with an
+    # emissive mesh rendered differently each time it was built afresh.
+    bulb = _point_light(scene, (0.6, 1.8, 0.6), 150.0, 0.03, (0.3, 0.5, 1.0))
+    bulb.visible_camera = True
     _point_light(scene, (-2.0, -1.0, 4.0), 150.0, 0.5)
     _camera(scene, (0.0, -4.0, 1.2), (0.2, 1.0, 0.2))
 
