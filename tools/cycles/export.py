@@ -334,9 +334,9 @@ class Renderer:
         self.bpy, self.scene, self.layer = bpy, scene, layer
         self.workdir, self.log = workdir, log
         self.count = 0
-        self.seconds = 0.0
+        self.seconds = {}  # kind -> (renders, seconds)
 
-    def render(self, samples, seed, offset=None, denoising_data=False):
+    def render(self, samples, seed, offset=None, denoising_data=False, kind="sample"):
         """One Cycles render; returns its passes {name: (h, w, channels)}."""
         c = self.scene.cycles
         c.samples = samples
@@ -355,7 +355,8 @@ class Renderer:
                 self.bpy.ops.render.render(write_still=True, layer=self.layer.name)
         except RuntimeError as e:
             raise ExportError(f"Cycles failed: {str(e).strip().splitlines()[-1]}")
-        self.seconds += time.monotonic() - start
+        n, t = self.seconds.get(kind, (0, 0.0))
+        self.seconds[kind] = (n + 1, t + time.monotonic() - start)
         if not os.path.exists(path):
             raise ExportError(f"Cycles wrote no image: {last_error(self.log)}")
         channels, (w, h) = exrio.read(path)
@@ -532,7 +533,7 @@ def probe(renderer, args, scene, positions, projection, unplaced, out, index):
 def probe_renders(renderer, args, positions, projection, unplaced, out, index):
     progress = Progress("probe renders", len(unplaced))
     for k, where in unplaced.items():
-        passes = renderer.render(args.spp, args.seed, offset=k)
+        passes = renderer.render(args.spp, args.seed, offset=k, kind="probe")
         x, y, missing = positions.place(passes[AOV][..., :3], projection, k, where)
         if missing[where].any():
             raise ExportError(f"sample {k}: the probe render has no direction either")
@@ -593,16 +594,17 @@ def main(argv):
                          f"{positions.worst:.2e} px out), positions: {positions.probed} from the probe"
                          + (f", {w * h * args.spp - positions.probed} from the materials' AOV"
                             if args.positions == "aov" else ""))
+            times = ", ".join(f"{n} {kind} renders, {t / n:.3f} s each"
+                              for kind, (n, t) in renderer.seconds.items())
             print(f"{args.out}: {w * h * args.spp} samples, {w}x{h} at {args.spp} spp, "
-                  f"{args.route} route, {renderer.count} renders in {seconds:.2f} s "
-                  f"({renderer.seconds / max(renderer.count, 1):.3f} s per render), "
+                  f"{args.route} route in {seconds:.2f} s ({times}), "
                   f"{space}{' -> Linear Rec.709' if identity is not None else ''}{extra}",
                   file=sys.stderr)
         if args.film_out or args.albedo_out or args.normal_out:
             c = scene.cycles
             c.use_sample_subset = False
             passes = renderer.render(args.spp, args.seed, denoising_data=bool(
-                args.albedo_out or args.normal_out))
+                args.albedo_out or args.normal_out), kind="film")
             if args.film_out:
                 exrio.write_rgb(args.film_out, image_of(passes, "Combined", identity, h, w))
             if args.albedo_out:
@@ -614,7 +616,7 @@ def main(argv):
         if args.reference_out:
             scene.cycles.use_sample_subset = False
             seed = (args.seed + REFERENCE_SEED_OFFSET) % (SEED_MAX + 1)
-            passes = renderer.render(args.reference_spp, seed)
+            passes = renderer.render(args.reference_spp, seed, kind="reference")
             exrio.write_rgb(args.reference_out, image_of(passes, "Combined", identity, h, w))
     except ExportError as e:
         print(f"{PROG}: {e}", file=sys.stderr)
