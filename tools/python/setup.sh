@@ -17,7 +17,7 @@ if ! "$venv/bin/python" -m pip install --quiet --disable-pip-version-check \
 fi
 start=$(date +%s)
 if ! (cd "$root/crates/python" && VIRTUAL_ENV="$venv" PATH="$venv/bin:$PATH" \
-    maturin develop --release --locked) >"$log" 2>&1; then
+    maturin develop --release) >"$log" 2>&1; then
     cat "$log" >&2
     echo "tools/python/setup.sh: building the module failed (above)" >&2
     exit 1
