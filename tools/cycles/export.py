@@ -270,6 +270,7 @@ def force_settings(bpy, scene, args):
     r.use_border = False
     r.use_compositing = False
     r.use_sequencer = False
+    r.use_multiview = False  # one view: a stereo render writes one EXR per eye
     r.use_persistent_data = True  # keep BVH and shaders between the N renders
     r.threads_mode = "FIXED"
     r.threads = args.threads or os.cpu_count() or 1
