@@ -86,7 +86,7 @@ def arguments(argv):
                    help="record order (default pass: sample k of every pixel, then k + 1)")
     p.add_argument("--route", choices=("subset", "seed"), default="subset",
                    help="subset (default): Cycles' own N-sample sequence, one sample per "
-                        "render, positions from an AOV; seed: N 1-sample renders with seeds "
+                        "render, positions from a probe render; seed: N 1-sample renders with seeds "
                         "S + k, records at pixel centres")
     p.add_argument("--positions", choices=("probe", "aov"), default="probe",
                    help="subset route: where the film positions come from. probe (default): "
