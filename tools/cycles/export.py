@@ -19,8 +19,9 @@ direction in a vector AOV ("pds_dir", Geometry > Incoming in the world's
 shader), which the pinhole camera projects back to the film position the
 ray came from (where a sample falls in its pixel does not depend on the
 scene). `--positions aov` measures it in the scene's own renders instead,
-from the AOV added to every material, as a cross-check. The seed route renders N times at 1 sample with seed S + k: exact positions (a
-1-sample render's sample sits at the pixel centre) but point-sampled.
+from the AOV added to every material, as a cross-check. The seed route
+renders N times at 1 sample with seed S + k: exact positions (a 1-sample
+render's sample sits at the pixel centre) but point-sampled.
 
 Settings that would alter or correlate samples are forced (docs/renderers.md):
 a 1-pixel box filter, the tabulated Sobol pattern, no glossy blur, no path
@@ -86,8 +87,8 @@ def arguments(argv):
                    help="record order (default pass: sample k of every pixel, then k + 1)")
     p.add_argument("--route", choices=("subset", "seed"), default="subset",
                    help="subset (default): Cycles' own N-sample sequence, one sample per "
-                        "render, positions from a probe render; seed: N 1-sample renders with seeds "
-                        "S + k, records at pixel centres")
+                        "render, positions from a probe render; seed: N 1-sample renders "
+                        "with seeds S + k, records at pixel centres")
     p.add_argument("--positions", choices=("probe", "aov"), default="probe",
                    help="subset route: where the film positions come from. probe (default): "
                         "a second render of each sample with the scene hidden from the camera "
