@@ -9,7 +9,9 @@ set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 venv="$here/.venv"
 py313="${PATHDENSITY_PYTHON313:-$HOME/.pyenv/versions/3.13.0/bin/python3}"
-check='import bpy, numpy; assert bpy.app.version >= (5, 0, 0), bpy.app.version_string'
+# The version the measurements in docs/renderers.md were made with.
+bpy_version=5.3.0
+check="import bpy, numpy; assert bpy.app.version_string.split()[0] == '$bpy_version', bpy.app.version_string"
 
 if [ -x "$venv/bin/python" ] && "$venv/bin/python" -c "$check" 2>/dev/null; then
     exit 0
@@ -23,7 +25,7 @@ if [ -z "$py313" ] || ! "$py313" -c 'import sys; assert sys.version_info[:2] == 
 fi
 start=$(date +%s)
 [ -x "$venv/bin/python" ] || "$py313" -m venv "$venv"
-"$venv/bin/python" -m pip install --quiet --disable-pip-version-check "bpy>=5,<6" numpy
+"$venv/bin/python" -m pip install --quiet --disable-pip-version-check "bpy==$bpy_version" numpy
 "$venv/bin/python" -c "$check; print('Blender', bpy.app.version_string, 'ready:', '$venv/bin/python')" 2>/dev/null \
     | grep -v '^$' || { echo "tools/cycles/setup.sh: bpy does not import" >&2; exit 1; }
 echo "tools/cycles/setup.sh: installed in $(( $(date +%s) - start )) s"
