@@ -118,11 +118,12 @@ impl FilterConfig {
     /// The defaults, chosen by measurement on our scenes and a real
     /// renderer's (docs/RESULTS.md, "HDR fidelity: the defaults"): the
     /// joint space `logluv` (F2b) with the white from the dump, the final
-    /// pass against every sample (F6a), k = 5, σ_color = 50, σ_image = 3,
+    /// pass against every sample (F6a), k = 8 (docs/RESULTS.md, "Planted
+    /// fireflies"), σ_color = 50, σ_image = 3,
     /// σ_time = 2; the methods of [`MethodSet::DEFAULT`] (all but plain
     /// OIDN), with their authors' defaults.
     pub const DEFAULT: FilterConfig = FilterConfig {
-        k: 5,
+        k: 8,
         sigma_image: JointSpace::DEFAULT.sigma_image,
         sigma_color: JointSpace::DEFAULT.sigma_color,
         sigma_time: JointSpace::DEFAULT.sigma_time,
