@@ -7,7 +7,10 @@
 # Writes OUT/RENDERER-SCENE-SPP.pds and OUT/RENDERER-SCENE-ref.exr, and for
 # Mitsuba's scenes OUT/mitsuba-SCENE-albedo.exr and -normal.exr (64 spp,
 # Mitsuba's aov integrator: OIDN's auxiliary inputs); a file already there
-# is kept. Needs Mitsuba (bash tools/mitsuba/setup.sh).
+# is kept. Needs Mitsuba (bash tools/mitsuba/setup.sh). Blender Cycles'
+# builtin scenes (CYCLES_SCENES, default "caustic highlight room textured";
+# reference CY_REF_SPP, default 4096, by Cycles; albedo and normal from its
+# denoising passes) when tools/cycles/.venv exists (bash tools/cycles/setup.sh).
 #
 #   bash tools/results/dumps.sh OUT
 set -euo pipefail
@@ -20,6 +23,9 @@ ours=${SCENES:-"glossy-room two-lights indirect-room sky"}
 theirs=${MITSUBA_SCENES:-"caustic glossy-highlight indirect-room"}
 ref_spp=${REF_SPP:-1024}
 mi_ref_spp=${MI_REF_SPP:-4096}
+cycles=${CYCLES_SCENES:-"caustic highlight room textured"}
+cy_ref_spp=${CY_REF_SPP:-4096}
+cy=tools/cycles/.venv/bin/python
 py=tools/mitsuba/.venv/bin/python
 mkdir -p "$out"
 cargo build --release --quiet --bin render
@@ -46,6 +52,20 @@ for s in $theirs; do
             --aux-spp 64)
         $py tools/mitsuba/export.py "tools/mitsuba/scenes/$s.xml" -o "$dump" \
             --size "${size}x${size}" --spp "$spp" --seed 1 --quiet "${refargs[@]}"
+        echo "$dump" >&2
+    done
+done
+[ -x "$cy" ] || { echo "no tools/cycles/.venv: Cycles' scenes left out" >&2; exit 0; }
+for s in $cycles; do
+    ref="$out/cycles-$s-ref.exr"
+    for spp in $spps; do
+        dump="$out/cycles-$s-$spp.pds"
+        [ -f "$dump" ] && continue
+        refargs=()
+        [ -f "$ref" ] || refargs=(--reference-spp "$cy_ref_spp" --reference-out "$ref"
+            --albedo-out "$out/cycles-$s-albedo.exr" --normal-out "$out/cycles-$s-normal.exr")
+        $cy tools/cycles/export.py "builtin:$s" -o "$dump" --size "${size}x${size}" --spp "$spp" \
+            --seed 1 --order pass --threads "$threads" --quiet "${refargs[@]}"
         echo "$dump" >&2
     done
 done

@@ -63,6 +63,25 @@ impl Stats {
     }
 }
 
+/// What the t-test reads of a pixel.
+#[derive(Clone, Copy)]
+struct Test {
+    n: u32,
+    y_mean: [f64; 3],
+    /// [`Stats::se2`].
+    se2: [f64; 3],
+}
+
+impl Test {
+    fn of(s: &Stats) -> Test {
+        Test {
+            n: s.n,
+            y_mean: s.y_mean,
+            se2: s.se2(),
+        }
+    }
+}
+
 fn box_cox(x: f64) -> f64 {
     (x.max(0.0).powf(LAMBDA) - 1.0) / LAMBDA
 }
@@ -119,6 +138,9 @@ pub fn denoise(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool) -> 
     let spatial: Vec<f64> = (0..=RADIUS)
         .map(|d| (-((d * d) as f64) / (2.0 * sigma * sigma)).exp())
         .collect();
+    // What the test reads of each pixel, made once: s²/n would otherwise
+    // be divided out again for each of the (2R + 1)² pixels around it.
+    let tests: Vec<Test> = stats.iter().map(Test::of).collect();
     let mut img = Image::for_header(h);
     img.data.par_iter_mut().enumerate().for_each(|(px, out)| {
         let p = &stats[px];
@@ -132,21 +154,22 @@ pub fn denoise(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool) -> 
         let (frame, i) = (px / (w * ht), px % (w * ht));
         let (x, y) = (i % w, i / w);
         let base = frame * w * ht;
-        let p_se2 = p.se2();
+        let tp = &tests[px];
         let (mut sum, mut weight) = ([0.0f64; 3], 0.0f64);
         for ny in y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(ht) {
             let wy = spatial[ny.abs_diff(y)];
+            let row = base + ny * w;
             for nx in x.saturating_sub(RADIUS)..(x + RADIUS + 1).min(w) {
-                let q = &stats[base + ny * w + nx];
-                if q.n < 2 {
+                let tq = &tests[row + nx];
+                if tq.n < 2 {
                     continue;
                 }
-                let crit = t[(p.n + q.n - 2) as usize];
-                let q_se2 = q.se2();
+                let crit = t[(tp.n + tq.n - 2) as usize];
                 let same = (0..3).all(|c| {
-                    (p.y_mean[c] - q.y_mean[c]).abs() <= crit * (p_se2[c] + q_se2[c]).sqrt()
+                    (tp.y_mean[c] - tq.y_mean[c]).abs() <= crit * (tp.se2[c] + tq.se2[c]).sqrt()
                 });
                 if same {
+                    let q = &stats[row + nx];
                     let wq = wy * spatial[nx.abs_diff(x)] * q.n as f64;
                     for (s, m) in sum.iter_mut().zip(q.mean) {
                         *s += wq * m;
