@@ -66,8 +66,8 @@ fn pixel_means(d: &DumpReader) -> Vec<[f64; 3]> {
     let pixels = (h.width * h.height) as usize;
     let mut sum = vec![[0.0f64; 3]; pixels];
     for (i, r) in d.records().iter().enumerate() {
-        for c in 0..3 {
-            sum[i % pixels][c] += r.rgb()[c] as f64;
+        for (s, v) in sum[i % pixels].iter_mut().zip(r.rgb()) {
+            *s += v as f64;
         }
     }
     sum.iter().map(|v| v.map(|x| x / h.spp as f64)).collect()
