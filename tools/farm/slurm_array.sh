@@ -11,6 +11,9 @@
 #SBATCH --cpus-per-task=2
 #SBATCH --mem=4G
 #SBATCH --output=pathdensity-%A_%a.log
+# A pre-empted task may be requeued, and its log then keeps every attempt.
+#SBATCH --requeue
+#SBATCH --open-mode=append
 set -euo pipefail
 if [ $# -lt 2 ]; then
   echo "usage: sbatch --array=0-N tools/farm/slurm_array.sh DUMPS OUTDIR [batch options]" >&2
