@@ -135,6 +135,16 @@ def test_decisions_images_and_report_equal_the_cli(tmp_path, case):
     assert res.fallback_pixels == report["fallback_pixels"]
 
 
+def test_a_stills_reference_in_either_shape_and_any_thread_count(tmp_path):
+    h, r = pd.read_dump(synth(tmp_path / "d.pds", width=20, height=12, spp=8, fireflies=0.02))
+    ref = pd.filter(r, header=h, methods="median").images["median"]
+    four = pd.filter(r, header=h, methods="median", reference=ref, threads=1)
+    three = pd.filter(r, header=h, methods="median", reference=ref[0].astype(np.float64), threads=2)
+    assert four.metrics == three.metrics and four.metrics["median"]["rms"] == 0
+    assert four.decisions.tobytes() == three.decisions.tobytes()
+    assert four.threads == 1 and three.threads == 2
+
+
 def test_without_a_reference_there_are_no_metrics(tmp_path):
     h, r = pd.read_dump(synth(tmp_path / "d.pds", width=16, height=16, spp=8))
     res = pd.filter(r, width=16, height=16, spp=8, methods="median")
