@@ -65,25 +65,6 @@ fn shots(dir: &Path) -> PathBuf {
     shots
 }
 
-/// `summary.csv` without the columns that depend on the run (status,
-/// seconds).
-fn deterministic_csv(out: &Path) -> String {
-    let text = std::fs::read_to_string(out.join("summary.csv")).unwrap();
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let keep: Vec<usize> = (0..header.len())
-        .filter(|&i| header[i] != "status" && !header[i].ends_with("_seconds"))
-        .collect();
-    let pick = |line: &str| {
-        let cells: Vec<&str> = line.split(',').collect();
-        keep.iter().map(|&i| cells[i]).collect::<Vec<_>>().join(",")
-    };
-    std::iter::once(pick(&header.join(",")))
-        .chain(lines.map(pick))
-        .collect::<Vec<_>>()
-        .join("\n")
-}
-
 /// Every EXR of every dump folder, by relative path.
 fn images(out: &Path) -> Vec<(String, Vec<u8>)> {
     let mut v = Vec::new();
@@ -160,7 +141,10 @@ fn shards_then_merge_give_one_process_summary_and_bad_dumps_fail_their_rows() {
     let m = run(&["batch", "--merge", two.to_str().unwrap()]);
     assert_eq!(m.status.code(), Some(4), "{}", stderr(&m));
 
-    assert_eq!(deterministic_csv(&one), deterministic_csv(&two));
+    assert_eq!(
+        common::deterministic_csv(&one),
+        common::deterministic_csv(&two)
+    );
     assert_eq!(images(&one), images(&two));
     let csv = std::fs::read_to_string(one.join("summary.csv")).unwrap();
     // Seven dumps, three more rows for the animation's frames.
@@ -376,7 +360,10 @@ fn a_killed_batch_resumes_to_the_outputs_of_an_uninterrupted_one() {
     let text = stdout(&o);
     assert!(text.contains(&format!("{} skipped", done.len())), "{text}");
     assert_eq!(images(&out), images(&whole));
-    assert_eq!(deterministic_csv(&out), deterministic_csv(&whole));
+    assert_eq!(
+        common::deterministic_csv(&out),
+        common::deterministic_csv(&whole)
+    );
 }
 
 #[test]
@@ -516,7 +503,10 @@ fn the_farm_recipes_run_as_documented() {
             .status
             .success()
     );
-    assert_eq!(deterministic_csv(&slurm), deterministic_csv(&one));
+    assert_eq!(
+        common::deterministic_csv(&slurm),
+        common::deterministic_csv(&one)
+    );
 
     let has_parallel = Command::new("parallel")
         .arg("--version")
@@ -554,5 +544,8 @@ fn the_farm_recipes_run_as_documented() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{line}: {}", stderr(&o));
-    assert_eq!(deterministic_csv(&par), deterministic_csv(&one));
+    assert_eq!(
+        common::deterministic_csv(&par),
+        common::deterministic_csv(&one)
+    );
 }

@@ -127,6 +127,25 @@ pub fn synth_mean(p: &pathdensity::synth::SynthParams) -> pathdensity::recon::Im
     film.resolve(&occ)
 }
 
+/// `summary.csv` without the columns that depend on the run (status,
+/// seconds).
+pub fn deterministic_csv(out: &Path) -> String {
+    let text = std::fs::read_to_string(out.join("summary.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let keep: Vec<usize> = (0..header.len())
+        .filter(|&i| header[i] != "status" && !header[i].ends_with("_seconds"))
+        .collect();
+    let pick = |line: &str| {
+        let cells: Vec<&str> = line.split(',').collect();
+        keep.iter().map(|&i| cells[i]).collect::<Vec<_>>().join(",")
+    };
+    std::iter::once(pick(&header.join(",")))
+        .chain(lines.map(pick))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
 /// Says loudly that a test skipped part of its work: written straight to
 /// the process's stderr, which the test harness does not capture, so the
 /// line shows even when the test passes.

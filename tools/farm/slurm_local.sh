@@ -12,7 +12,8 @@
 # munged (on its own socket), slurmctld and slurmd run as root (directly or
 # through `sudo -n`), on ports 16817/16818. It refuses to start when a
 # slurmctld it did not start is running. Both commands are idempotent.
-# Debian/Ubuntu (apt-get) only for the install.
+# Debian/Ubuntu (apt-get) only for the install; PATHDENSITY_SLURM_INSTALL=0
+# fails instead of installing.
 set -euo pipefail
 dir=${PATHDENSITY_SLURM_DIR:-/tmp/pathdensity-slurm}
 timeout=${PATHDENSITY_SLURM_TIMEOUT:-60}
@@ -60,6 +61,7 @@ install() {
     command -v sbatch >/dev/null && command -v munged >/dev/null; then
     return
   fi
+  [ "${PATHDENSITY_SLURM_INSTALL:-1}" != 0 ] || die "slurm-wlm and munge are not installed (and PATHDENSITY_SLURM_INSTALL=0)"
   command -v apt-get >/dev/null || die "slurm-wlm and munge are missing and there is no apt-get"
   local t0=$SECONDS
   as_root apt-get update -q >/dev/null
