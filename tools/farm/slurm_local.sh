@@ -15,6 +15,8 @@
 # Debian/Ubuntu (apt-get) only for the install; PATHDENSITY_SLURM_INSTALL=0
 # fails instead of installing.
 set -euo pipefail
+# The daemons are in /usr/sbin, off a Debian user's PATH.
+export PATH=$PATH:/usr/sbin:/sbin
 dir=${PATHDENSITY_SLURM_DIR:-/tmp/pathdensity-slurm}
 timeout=${PATHDENSITY_SLURM_TIMEOUT:-60}
 conf=$dir/slurm.conf
@@ -32,11 +34,12 @@ else
   as_root() { die "needs root or password-less sudo"; }
 fi
 
-# The pid in $dir/NAME.pid if that process is alive.
+# The pid in $dir/NAME.pid if that process is alive (/proc: kill -0 fails
+# on root's processes for a user).
 ours() {
   local pid
   pid=$(cat "$dir/$1.pid" 2>/dev/null) || return 1
-  [ -n "$pid" ] && kill -0 "$pid" 2>/dev/null && echo "$pid"
+  [ -n "$pid" ] && [ -d "/proc/$pid" ] && echo "$pid"
 }
 
 stop() {
@@ -45,7 +48,7 @@ stop() {
     if pid=$(ours "$name"); then
       as_root kill "$pid" 2>/dev/null || true
       for _ in $(seq 50); do
-        kill -0 "$pid" 2>/dev/null || break
+        [ -d "/proc/$pid" ] || break
         sleep 0.1
       done
       as_root kill -KILL "$pid" 2>/dev/null || true
