@@ -21,21 +21,12 @@ use pathdensity::io::exr;
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
 fn python() -> Option<PathBuf> {
-    let p = Path::new(ROOT).join("tools/cycles/.venv/bin/python");
-    let ok = Command::new(&p)
-        .args(["-c", "import bpy, numpy"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false);
-    if ok {
-        return Some(p);
-    }
-    let why = "Blender Cycles (bpy) is not set up (bash tools/cycles/setup.sh)";
-    if std::env::var_os("PATHDENSITY_REQUIRE_CYCLES").is_some() {
-        panic!("{why}, and PATHDENSITY_REQUIRE_CYCLES is set");
-    }
-    common::skipped(why);
-    None
+    common::venv_python("cycles", "import bpy, numpy").or_else(|| {
+        common::missing(
+            "PATHDENSITY_REQUIRE_CYCLES",
+            "Blender Cycles (bpy) is not set up (bash tools/cycles/setup.sh)",
+        )
+    })
 }
 
 fn export(py: &Path, args: &[&str]) -> Output {

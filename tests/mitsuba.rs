@@ -17,21 +17,16 @@ use pathdensity::io::exr;
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
 fn python() -> Option<PathBuf> {
-    let p = Path::new(ROOT).join("tools/mitsuba/.venv/bin/python");
-    let ok = Command::new(&p)
-        .args(["-c", "import mitsuba as mi; mi.set_variant('llvm_ad_rgb')"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false);
-    if ok {
-        return Some(p);
-    }
-    let why = "Mitsuba 3 is not set up (bash tools/mitsuba/setup.sh)";
-    if std::env::var_os("PATHDENSITY_REQUIRE_MITSUBA").is_some() {
-        panic!("{why}, and PATHDENSITY_REQUIRE_MITSUBA is set");
-    }
-    common::skipped(why);
-    None
+    common::venv_python(
+        "mitsuba",
+        "import mitsuba as mi; mi.set_variant('llvm_ad_rgb')",
+    )
+    .or_else(|| {
+        common::missing(
+            "PATHDENSITY_REQUIRE_MITSUBA",
+            "Mitsuba 3 is not set up (bash tools/mitsuba/setup.sh)",
+        )
+    })
 }
 
 fn tool(py: &Path, script: &str, args: &[&str]) -> Output {

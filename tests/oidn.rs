@@ -30,14 +30,10 @@ fn oidn() -> Option<(PathBuf, String)> {
         .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
     match found {
         Some(dir) => Some((py, dir)),
-        None => {
-            let why = "OIDN is not set up (bash tools/oidn/setup.sh)";
-            if std::env::var_os("PATHDENSITY_REQUIRE_OIDN").is_some() {
-                panic!("{why}, and PATHDENSITY_REQUIRE_OIDN is set");
-            }
-            common::skipped(why);
-            None
-        }
+        None => common::missing(
+            "PATHDENSITY_REQUIRE_OIDN",
+            "OIDN is not set up (bash tools/oidn/setup.sh)",
+        ),
     }
 }
 

@@ -154,6 +154,29 @@ pub fn skipped(why: &str) {
     let _ = writeln!(std::io::stderr(), "SKIPPED: {why}");
 }
 
+/// An optional tool is missing: a loud skip, or, with the environment
+/// variable `require` set (`.ci/run` sets every one), a failure.
+pub fn missing<T>(require: &str, why: &str) -> Option<T> {
+    if std::env::var_os(require).is_some() {
+        panic!("{why}, and {require} is set");
+    }
+    skipped(why);
+    None
+}
+
+/// The python of `tools/TOOL/.venv`, if `probe` (Python code) runs in it.
+pub fn venv_python(tool: &str, probe: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tools")
+        .join(tool)
+        .join(".venv/bin/python");
+    let ok = std::process::Command::new(&p)
+        .args(["-c", probe])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    ok.then_some(p)
+}
+
 /// Whether `python3` can import numpy; with `PATHDENSITY_REQUIRE_NUMPY`
 /// set (CI sets it) its absence fails the test instead of skipping it.
 pub fn python_with_numpy() -> bool {

@@ -44,6 +44,7 @@ sys.path.insert(0, os.path.join(HERE, ".."))
 sys.path.insert(0, HERE)
 import exrio  # noqa: E402
 import pds  # noqa: E402
+from exporter import ExportError, parse_size, positive  # noqa: E402
 
 PROG = "export.py"
 AOV = "pds_dir"
@@ -53,27 +54,6 @@ EPSILON = 1e-3
 # The reference uses seed S + this (mod 2^31), far from the seed route's S + k.
 REFERENCE_SEED_OFFSET = 1 << 30
 SEED_MAX = 2**31 - 1
-
-
-class ExportError(Exception):
-    """A problem with the user's input, printed as one line."""
-
-
-def parse_size(text):
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected WxH, e.g. 64x64, got {text!r}")
-    if not (1 <= w <= 8192 and 1 <= h <= 8192):
-        raise argparse.ArgumentTypeError(f"film size {w}x{h} is outside 1x1..8192x8192")
-    return w, h
-
-
-def positive(text):
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
 
 
 def arguments(argv):

@@ -34,32 +34,12 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 import pds  # noqa: E402
+from exporter import ExportError, parse_size, positive  # noqa: E402
 
 PROG = "export.py"
 SUPPORTED_INTEGRATORS = ("path", "volpath")
 SAMPLES_PER_CHUNK = 1 << 20
 DUMP_STREAM, REFERENCE_STREAM = 0, 1
-
-
-class ExportError(Exception):
-    """A problem with the user's input, printed as one line."""
-
-
-def parse_size(text):
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected WxH, e.g. 128x128, got {text!r}")
-    if not (1 <= w <= 8192 and 1 <= h <= 8192):
-        raise argparse.ArgumentTypeError(f"film size {w}x{h} is outside 1x1..8192x8192")
-    return w, h
-
-
-def positive(text):
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
 
 
 def arguments(argv):
