@@ -2,6 +2,8 @@
 tools/cycles/export.py) share: their one-line error and the parsers of
 their common flags."""
 import argparse
+import sys
+import time
 
 
 class ExportError(Exception):
@@ -25,3 +27,22 @@ def positive(text):
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
     return value
+
+
+class Progress:
+    """A bar on stderr when it is a terminal (and not `quiet`), else silent."""
+
+    def __init__(self, label, total, quiet=False):
+        self.label, self.total, self.done = label, total, 0
+        self.on = not quiet and sys.stderr.isatty()
+        self.start = time.monotonic()
+
+    def advance(self, n=1):
+        self.done += n
+        if self.on:
+            frac = self.done / self.total
+            sys.stderr.write(f"\r{self.label} [{'#' * int(30 * frac):<30}] {self.done}/{self.total} "
+                             f"{time.monotonic() - self.start:6.1f} s")
+            if self.done >= self.total:
+                sys.stderr.write("\n")
+            sys.stderr.flush()

@@ -44,7 +44,7 @@ sys.path.insert(0, os.path.join(HERE, ".."))
 sys.path.insert(0, HERE)
 import exrio  # noqa: E402
 import pds  # noqa: E402
-from exporter import ExportError, parse_size, positive  # noqa: E402
+from exporter import ExportError, Progress, parse_size, positive  # noqa: E402
 
 PROG = "export.py"
 AOV = "pds_dir"
@@ -125,23 +125,6 @@ def last_error(log):
         return "no log"
     errors = [l for l in lines if "error" in l.lower()]
     return (errors or lines or ["no output"])[-1]
-
-
-class Progress:
-    def __init__(self, label, total):
-        self.label, self.total, self.done = label, total, 0
-        self.on = sys.stderr.isatty()
-        self.start = time.monotonic()
-
-    def advance(self, n=1):
-        self.done += n
-        if self.on:
-            frac = self.done / self.total
-            sys.stderr.write(f"\r{self.label} [{'#' * int(30 * frac):<30}] {self.done}/{self.total} "
-                             f"{time.monotonic() - self.start:6.1f} s")
-            if self.done >= self.total:
-                sys.stderr.write("\n")
-            sys.stderr.flush()
 
 
 # ---------------------------------------------------------------- the scene

@@ -34,7 +34,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 import pds  # noqa: E402
-from exporter import ExportError, parse_size, positive  # noqa: E402
+from exporter import ExportError, Progress, parse_size, positive  # noqa: E402
 
 PROG = "export.py"
 SUPPORTED_INTEGRATORS = ("path", "volpath")
@@ -224,24 +224,6 @@ def floor_into_pixel(records, width, height, passes):
     for axis, index in ((0, pixel % width), (1, pixel // width)):
         top = np.nextafter((index + 1).astype(np.float32), np.float32(0))
         records[:, axis] = np.minimum(records[:, axis], top)
-
-
-class Progress:
-    def __init__(self, label, total, quiet):
-        self.label, self.total, self.done = label, total, 0
-        self.on = not quiet and sys.stderr.isatty()
-        self.start = time.monotonic()
-
-    def advance(self, n):
-        self.done += n
-        if self.on:
-            frac = self.done / self.total
-            bar = "#" * int(30 * frac)
-            sys.stderr.write(f"\r{self.label} [{bar:<30}] {100 * frac:5.1f}% "
-                             f"{time.monotonic() - self.start:6.1f} s")
-            if self.done >= self.total:
-                sys.stderr.write("\n")
-            sys.stderr.flush()
 
 
 def passes(camera, spp):
