@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use pathdensity::config::Method;
 use pathdensity::regress;
 
 fn fixtures() -> PathBuf {
@@ -102,5 +103,34 @@ fn an_image_produced_but_not_expected_is_drift() {
             "clamp: produced but not expected (--bless adds it)",
             "clamp.exr: written but not expected (--bless adds it)"
         ],
+    );
+}
+
+/// A method the table gains is under regression only once a fixture names
+/// it: the `*-default` fixtures together must make every method a build
+/// without OIDN can (tools/maint/make_fixtures.sh lists them; add the new
+/// one there and bless).
+#[test]
+fn every_method_without_oidn_is_pinned_by_a_default_fixture() {
+    let mut pinned = std::collections::BTreeSet::new();
+    for dir in regress::find(&fixtures()).unwrap() {
+        if !dir.to_string_lossy().ends_with("-default") {
+            continue;
+        }
+        let text = std::fs::read_to_string(dir.join("manifest.json")).unwrap();
+        let manifest: serde_json::Value = serde_json::from_str(&text).unwrap();
+        for m in manifest["config"]["methods"].as_array().unwrap() {
+            pinned.insert(m.as_str().unwrap().to_string());
+        }
+    }
+    let missing: Vec<&str> = Method::ALL
+        .iter()
+        .filter(|m| !m.needs_oidn())
+        .map(|m| m.name())
+        .filter(|name| !pinned.contains(*name))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "no default fixture makes {missing:?}: add them to tools/maint/make_fixtures.sh's methods and run it"
     );
 }

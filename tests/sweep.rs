@@ -72,7 +72,7 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
         .map(|r| r.white_value)
         .collect();
     assert!(autos.iter().all(|&v| v == autos[0] && v > 0.0 && v != 1.0));
-    let names: Vec<&str> = s.baselines.iter().map(|b| b.method.as_str()).collect();
+    let names: Vec<&str> = s.baselines.iter().map(|b| b.label.as_str()).collect();
     assert_eq!(
         names,
         [
@@ -106,7 +106,7 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
     .collect();
     f.html = false;
     let fr = pathdensity::commands::filter::filter(&f).unwrap();
-    let by = |n: &str| s.baselines.iter().find(|b| b.method == n).unwrap().metrics;
+    let by = |n: &str| s.baselines.iter().find(|b| b.label == n).unwrap().metrics;
     assert_eq!(by("median"), fr.metrics[&common::image("median")].pooled);
     assert_eq!(by("trimmed"), fr.metrics[&common::image("trimmed")].pooled);
     assert_eq!(

@@ -121,7 +121,7 @@ pub fn table(s: &Sweep) -> String {
     for b in &s.baselines {
         t += &format!(
             "{:>51} {:>9.3} {:>30.6}  {:>8.5}\n",
-            b.method, b.seconds, b.metrics.rms, b.metrics.rms_display
+            b.label, b.seconds, b.metrics.rms, b.metrics.rms_display
         );
     }
     t + "(* on the time–RMS Pareto front)\n"

@@ -4,6 +4,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::plots::{to_png, to_svg};
+use crate::config::Method;
 use crate::metrics::Metrics;
 use crate::sweep::{Row, Sweep};
 
@@ -89,7 +90,7 @@ pub fn csv(s: &Sweep) -> String {
         });
     let baselines = s.baselines.iter().map(|b| {
         CsvRow {
-            method: &b.method,
+            method: &b.label,
             final_pass: None,
             color_space: None,
             k: None,
@@ -189,9 +190,9 @@ fn chart_time<DB: DrawingBackend>(s: &Sweep, root: DrawingArea<DB, Shift>) -> Re
         let rms = b.metrics.rms;
         let (p, label) = if rms > e_max {
             let top = (b.seconds.max(1e-4), e_max * 0.97);
-            (top, format!("{} (RMS {rms:.3}, off scale)", b.method))
+            (top, format!("{} (RMS {rms:.3}, off scale)", b.label))
         } else {
-            ((b.seconds.max(1e-4), rms), b.method.clone())
+            ((b.seconds.max(1e-4), rms), b.label.clone())
         };
         chart
             .draw_series([TriangleMarker::new(p, 6, BLACK.filled())])
@@ -274,7 +275,7 @@ fn chart_k<DB: DrawingBackend>(
     let mean_rms = s
         .baselines
         .iter()
-        .find(|b| b.method == "mean")
+        .find(|b| b.image == Method::Mean)
         .map_or(0.0, |b| value(&b.metrics));
     let e_max = s
         .ok_rows()
@@ -312,7 +313,7 @@ fn chart_k<DB: DrawingBackend>(
             .label(name)
             .legend(move |(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], color));
     }
-    if let Some(mean) = s.baselines.iter().find(|b| b.method == "mean") {
+    if let Some(mean) = s.baselines.iter().find(|b| b.image == Method::Mean) {
         let y = value(&mean.metrics);
         chart
             .draw_series(LineSeries::new(

@@ -161,7 +161,12 @@ pub struct Row {
 /// A baseline measured once.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Baseline {
-    pub method: String,
+    /// The method whose image this is.
+    #[serde(skip)]
+    pub image: Method,
+    /// Its name, and for a peer method the value of its swept parameter.
+    #[serde(rename = "method")]
+    pub label: String,
     pub seconds: f64,
     pub metrics: Metrics,
 }
@@ -250,7 +255,8 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
                 .image(method)
                 .map_err(|e| anyhow::anyhow!("{label}: {e}"))?;
             baselines.push(Baseline {
-                method: label,
+                image: method,
+                label,
                 seconds,
                 metrics: compare(&img),
             });

@@ -268,7 +268,7 @@ struct Session<'a> {
 
 impl Session<'_> {
     /// The device's pending error, as `what: MESSAGE`.
-    fn check(&self, what: &str) -> Result<(), String> {
+    fn check(&self, what: &'static str) -> Result<(), OidnError> {
         let mut msg: *const c_char = std::ptr::null();
         // SAFETY: a live device; OIDN sets msg to its own string or null.
         let code = unsafe { (self.api.device_error)(self.device, &mut msg) };
@@ -282,7 +282,7 @@ impl Session<'_> {
                 .to_string_lossy()
                 .into_owned()
         };
-        Err(format!("OIDN: {what}: {msg}"))
+        Err(OidnError::Device { what, message: msg })
     }
 }
 
@@ -327,9 +327,29 @@ fn aux_input(img: &Image, f: usize) -> Vec<f32> {
         .collect()
 }
 
+/// Why OIDN made no image.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum OidnError {
+    /// No library was found or loaded; says where it looked.
+    #[error("OIDN: {0}")]
+    Unavailable(&'static str),
+    /// The library made no CPU device.
+    #[error("OIDN: no CPU device")]
+    NoDevice,
+    /// The device made no `RT` filter.
+    #[error("OIDN: no RT filter")]
+    NoFilter,
+    /// The library reported an error while doing `what`.
+    #[error("OIDN: {what}: {message}")]
+    Device {
+        what: &'static str,
+        message: String,
+    },
+}
+
 /// OIDN's `RT` filter (HDR) on every frame of `img`, with `aux` when given.
-pub fn denoise(img: &Image, occupancy: &[u32], aux: Option<&Aux>) -> Result<Denoised, String> {
-    let lib = library().map_err(|why| format!("OIDN: {why}"))?;
+pub fn denoise(img: &Image, occupancy: &[u32], aux: Option<&Aux>) -> Result<Denoised, OidnError> {
+    let lib = library().map_err(OidnError::Unavailable)?;
     denoise_with(lib, img, occupancy, aux)
 }
 
@@ -338,7 +358,7 @@ fn denoise_with(
     img: &Image,
     occupancy: &[u32],
     aux: Option<&Aux>,
-) -> Result<Denoised, String> {
+) -> Result<Denoised, OidnError> {
     let api = &lib.api;
     // SAFETY: OIDN's documented call order: a device, committed, then a
     // filter of it; both released by the session's drop.
@@ -348,7 +368,7 @@ fn denoise_with(
         filter: std::ptr::null_mut(),
     };
     if s.device.is_null() {
-        return Err("OIDN: no CPU device".into());
+        return Err(OidnError::NoDevice);
     }
     unsafe { (api.commit_device)(s.device) };
     s.check("the CPU device")?;
@@ -358,7 +378,7 @@ fn denoise_with(
     s.filter = unsafe { (api.new_filter)(s.device, c"RT".as_ptr()) };
     s.check("the RT filter")?;
     if s.filter.is_null() {
-        return Err("OIDN: no RT filter".into());
+        return Err(OidnError::NoFilter);
     }
     unsafe { (api.set_bool)(s.filter, c"hdr".as_ptr(), true) };
     let (w, h) = (img.width, img.height);

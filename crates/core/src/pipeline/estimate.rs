@@ -19,7 +19,7 @@ use std::time::Instant;
 use crate::config::FilterConfig;
 use crate::density::Decision;
 use crate::dump::{Header, Record};
-use crate::imagespace;
+use crate::imagespace::{self, oidn::OidnError};
 use crate::method::Method;
 pub use crate::method::Piece;
 use crate::par::prelude::*;
@@ -121,7 +121,7 @@ pub struct Estimators<'s, 'a> {
     robust: OnceLock<(RobustImages, f64)>,
     mon: OnceLock<(MonImages, f64)>,
     /// OIDN's image of the mean (`oidn`, and `oidn_ci` starts from it).
-    oidn_mean: OnceLock<Result<(Image, f64), String>>,
+    oidn_mean: OnceLock<Result<(Image, f64), OidnError>>,
     filtered_energy: OnceLock<(Image, f64)>,
     /// The filter's decisions, one byte per record ([`Self::with_decisions`]).
     decisions: Option<&'s [u8]>,
@@ -226,19 +226,83 @@ impl<'s, 'a> Estimators<'s, 'a> {
 
     /// `method`'s image and the seconds it took from the dump. Only OIDN
     /// can fail (its library reports an error).
-    pub fn image(&self, method: Method) -> Result<(Image, f64), String> {
-        match method {
-            Method::Oidn => self.oidn_mean().cloned(),
+    pub fn image(&self, method: Method) -> Result<(Image, f64), OidnError> {
+        let (records, h, c) = (self.shared.records, self.shared.header, self.config);
+        let rec = &self.core.reconstruction;
+        let mean_s = self.core.reconstruct_seconds;
+        let filtered_s = self.core.replay_seconds + mean_s;
+        let after = |base: f64, (img, s): (Image, f64)| (img, base + s);
+        Ok(match method {
+            Method::Mean => (rec.mean.clone(), mean_s),
+            Method::Filtered => (rec.filtered.clone(), filtered_s),
+            Method::Median => self.robust(|r| &r.median),
+            Method::Trimmed => self.robust(|r| &r.trimmed),
+            Method::Mon => self.mon(|m| &m.mon),
+            Method::Gmon => self.mon(|m| &m.gmon),
+            Method::Bilateral => after(
+                mean_s,
+                timed(|| {
+                    imagespace::bilateral(&rec.mean, &rec.occupancy, c.bilateral(), self.white())
+                }),
+            ),
+            Method::Median3 => after(
+                mean_s,
+                timed(|| imagespace::median3(&rec.mean, &rec.occupancy)),
+            ),
+            Method::FilteredBilateral => after(
+                filtered_s,
+                timed(|| {
+                    imagespace::bilateral(
+                        &rec.filtered,
+                        &rec.occupancy,
+                        c.bilateral(),
+                        self.white(),
+                    )
+                }),
+            ),
+            Method::Rwmc => timed(|| rwmc::rwmc(records, h, &c.rwmc())),
+            Method::Clamp => {
+                timed(|| clamp::clamped_mean(records, h, c.recon.filter(), c.clamp, &rec.occupancy))
+            }
+            Method::FilteredEnergy => {
+                let (fe, s) = self.filtered_energy();
+                (fe.clone(), *s)
+            }
+            Method::FilteredEnergyBilateralCi => {
+                let (fe, fe_s) = self.filtered_energy();
+                let (smoothed, t) = timed(|| {
+                    imagespace::bilateral(fe, &rec.occupancy, c.bilateral(), self.white())
+                });
+                self.bounded(&smoothed, fe_s + t)
+            }
+            Method::Statmc => {
+                let (img, s) = self.statmc();
+                (img.clone(), *s)
+            }
+            Method::Guided => {
+                let (denoised, s) = self.statmc();
+                // The energy the filter removed, spread back as in
+                // filtered_energy.
+                let (with_energy, t) = timed(|| {
+                    energy::energy_aware(
+                        denoised,
+                        &self.core.removed,
+                        &rec.occupancy,
+                        c.energy_sigma,
+                    )
+                });
+                self.guided(&with_energy, s + t)
+            }
+            Method::Oidn => self.oidn_mean()?.clone(),
             Method::OidnCi => {
                 let (denoised, s) = self.oidn_mean()?;
-                Ok(self.bounded(denoised, *s))
+                self.bounded(denoised, *s)
             }
             Method::GuidedOidn => {
                 let (denoised, s) = self.oidn_mean()?;
-                Ok(self.guided(denoised, *s))
+                self.guided(denoised, *s)
             }
-            _ => Ok(self.exact(method)),
-        }
+        })
     }
 
     /// `img` (made in `seconds`) held inside every pixel's confidence
@@ -295,7 +359,7 @@ impl<'s, 'a> Estimators<'s, 'a> {
     }
 
     /// OIDN's image of the mean, made once, and the seconds from the dump.
-    fn oidn_mean(&self) -> Result<&(Image, f64), String> {
+    fn oidn_mean(&self) -> Result<&(Image, f64), OidnError> {
         self.oidn_mean
             .get_or_init(|| {
                 let (d, s) = self.oidn(&self.core.reconstruction.mean)?;
@@ -307,13 +371,13 @@ impl<'s, 'a> Estimators<'s, 'a> {
 
     /// `method`'s image denoised by OIDN (`METHOD+oidn`), and the seconds
     /// from the dump.
-    pub fn denoised(&self, method: Method) -> Result<(Image, f64), String> {
+    pub fn denoised(&self, method: Method) -> Result<(Image, f64), OidnError> {
         let (img, s) = self.image(method)?;
         let (denoised, t) = self.oidn(&img)?;
         Ok((denoised, s + t))
     }
 
-    fn oidn(&self, img: &Image) -> Result<(Image, f64), String> {
+    fn oidn(&self, img: &Image) -> Result<(Image, f64), OidnError> {
         let occupancy = &self.core.reconstruction.occupancy;
         let (d, s) = timed(|| imagespace::oidn::denoise(img, occupancy, self.aux));
         let d = d?;
@@ -326,79 +390,6 @@ impl<'s, 'a> Estimators<'s, 'a> {
     fn white(&self) -> f64 {
         self.white
             .expect("only an image that needs no white is made before it is known")
-    }
-
-    fn exact(&self, method: Method) -> (Image, f64) {
-        let (records, h, c) = (self.shared.records, self.shared.header, self.config);
-        let rec = &self.core.reconstruction;
-        let mean_s = self.core.reconstruct_seconds;
-        let filtered_s = self.core.replay_seconds + mean_s;
-        let after = |base: f64, (img, s): (Image, f64)| (img, base + s);
-        match method {
-            Method::Mean => (rec.mean.clone(), mean_s),
-            Method::Filtered => (rec.filtered.clone(), filtered_s),
-            Method::Median => self.robust(|r| &r.median),
-            Method::Trimmed => self.robust(|r| &r.trimmed),
-            Method::Mon => self.mon(|m| &m.mon),
-            Method::Gmon => self.mon(|m| &m.gmon),
-            Method::Bilateral => after(
-                mean_s,
-                timed(|| {
-                    imagespace::bilateral(&rec.mean, &rec.occupancy, c.bilateral(), self.white())
-                }),
-            ),
-            Method::Median3 => after(
-                mean_s,
-                timed(|| imagespace::median3(&rec.mean, &rec.occupancy)),
-            ),
-            Method::FilteredBilateral => after(
-                filtered_s,
-                timed(|| {
-                    imagespace::bilateral(
-                        &rec.filtered,
-                        &rec.occupancy,
-                        c.bilateral(),
-                        self.white(),
-                    )
-                }),
-            ),
-            Method::Rwmc => timed(|| rwmc::rwmc(records, h, &c.rwmc())),
-            Method::Clamp => {
-                timed(|| clamp::clamped_mean(records, h, c.recon.filter(), c.clamp, &rec.occupancy))
-            }
-            Method::FilteredEnergyBilateralCi => {
-                let (fe, fe_s) = self.filtered_energy();
-                let (smoothed, t) = timed(|| {
-                    imagespace::bilateral(fe, &rec.occupancy, c.bilateral(), self.white())
-                });
-                self.bounded(&smoothed, fe_s + t)
-            }
-            Method::Guided => {
-                let (denoised, s) = self.statmc();
-                // The energy the filter removed, spread back as in
-                // filtered_energy.
-                let (with_energy, t) = timed(|| {
-                    energy::energy_aware(
-                        denoised,
-                        &self.core.removed,
-                        &rec.occupancy,
-                        c.energy_sigma,
-                    )
-                });
-                self.guided(&with_energy, s + t)
-            }
-            Method::Statmc => {
-                let (img, s) = self.statmc();
-                (img.clone(), *s)
-            }
-            Method::Oidn | Method::OidnCi | Method::GuidedOidn => {
-                unreachable!("OIDN goes through Estimators::image")
-            }
-            Method::FilteredEnergy => {
-                let (fe, s) = self.filtered_energy();
-                (fe.clone(), *s)
-            }
-        }
     }
 
     /// filtered_energy, made once (its image and the bilateral's input).

@@ -14,6 +14,7 @@ use std::time::Instant;
 use crate::config::{ConfigError, Denoise, FilterConfig, FinalPass};
 use crate::density::{self, Decision, ExactSigma, FilterCounts, FilterResult, ReplayOptions};
 use crate::dump::{Header, Record};
+use crate::imagespace::oidn::OidnError;
 use crate::method::{ImageId, Method};
 use crate::metrics::{self, ImageMetrics};
 use crate::par::prelude::*;
@@ -47,7 +48,7 @@ pub enum PipelineError {
         film: String,
     },
     #[error("{image}: {problem}")]
-    Method { image: ImageId, problem: String },
+    Method { image: ImageId, problem: OidnError },
 }
 
 impl From<ConfigError> for PipelineError {
