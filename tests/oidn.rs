@@ -9,33 +9,13 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use pathdensity::io::exr;
 
-const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
-/// The venv's python and OIDN_DIR, if tools/oidn/setup.sh has run.
-fn oidn() -> Option<(PathBuf, String)> {
-    let py = Path::new(ROOT).join("tools/oidn/.venv/bin/python");
-    let found = Command::new(&py)
-        .args([
-            "-c",
-            "import os, pyoidn; print(os.path.join(os.path.dirname(pyoidn.__file__), 'oidn'))",
-        ])
-        .output()
-        .ok()
-        .filter(|o| o.status.success())
-        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
-    match found {
-        Some(dir) => Some((py, dir)),
-        None => common::missing(
-            "PATHDENSITY_REQUIRE_OIDN",
-            "OIDN is not set up (bash tools/oidn/setup.sh)",
-        ),
-    }
-}
+use common::oidn;
 
 /// The binary with `OIDN_DIR` set for it (the library is found at run
 /// time: no OIDN build).

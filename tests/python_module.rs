@@ -75,15 +75,18 @@ fn python() -> Option<PathBuf> {
     Some(py)
 }
 
-#[test]
-fn the_python_modules_pytest_tests_pass() {
-    let Some(py) = python() else { return };
-    let out = Command::new(py)
-        .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
+/// Runs the module's pytest tests (those `-k` selects, if given) with
+/// `envs`; asserts every one ran and passed.
+fn pytest(py: &Path, select: Option<&str>, envs: &[(&str, &str)]) {
+    let mut c = Command::new(py);
+    c.args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
         .arg(Path::new(ROOT).join("crates/python/tests"))
         .env("PATHDENSITY_CLI", env!("CARGO_BIN_EXE_pathdensity"))
-        .output()
-        .expect("runs pytest");
+        .envs(envs.iter().copied());
+    if let Some(k) = select {
+        c.args(["-k", k]);
+    }
+    let out = c.output().expect("runs pytest");
     let text = format!(
         "{}{}",
         String::from_utf8_lossy(&out.stdout),
@@ -95,5 +98,26 @@ fn the_python_modules_pytest_tests_pass() {
     assert!(
         last.contains(" passed") && !last.contains("skipped") && !last.contains("failed"),
         "{text}"
+    );
+}
+
+#[test]
+fn the_python_modules_pytest_tests_pass() {
+    let Some(py) = python() else { return };
+    pytest(&py, None, &[]);
+}
+
+/// albedo= and normal= reach OIDN as the command's flags do, with the
+/// pyoidn wheel's library found through `OIDN_DIR`.
+#[test]
+fn the_modules_albedo_and_normal_reach_oidn() {
+    let Some(py) = python() else { return };
+    let Some((_, oidn_dir)) = common::oidn() else {
+        return;
+    };
+    pytest(
+        &py,
+        Some("albedo"),
+        &[("OIDN_DIR", &oidn_dir), ("PATHDENSITY_EXPECT_OIDN", "1")],
     );
 }

@@ -11,8 +11,10 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use base64::Engine;
 use pathdensity::commands::filter::{FilterOptions, filter};
 use pathdensity::io::exr;
+use pathdensity::sweep::SweepOptions;
 use pathdensity::synth::SynthParams;
 
 fn browser() -> Option<PathBuf> {
@@ -49,6 +51,48 @@ fn headless(browser: &Path, page: &Path, args: &[&str]) -> (String, String) {
         String::from_utf8_lossy(&out.stdout).into_owned(),
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
+}
+
+/// Fails on an error the page logged to the browser's console.
+fn no_console_errors(stderr: &str) {
+    for line in stderr.lines() {
+        let console_error = line.contains("CONSOLE") && line.contains("rror");
+        assert!(
+            !console_error && !line.contains("Uncaught"),
+            "console error: {line}"
+        );
+    }
+}
+
+/// Loads `html` with tests/browser/viewer_check.js injected (written
+/// beside it in `dir`), which drives the viewer by its keys; asserts it
+/// passed without a console error, and returns the DOM.
+fn viewer_check(browser: &Path, html: &str, dir: &Path) -> String {
+    let check = include_str!("browser/viewer_check.js");
+    let tested = dir.join("viewer_tested.html");
+    std::fs::write(
+        &tested,
+        html.replace("</body>", &format!("<script>{check}</script>\n</body>")),
+    )
+    .unwrap();
+    let mut attempt = 0;
+    let dom = loop {
+        attempt += 1;
+        let (dom, err) = headless(browser, &tested, &["--dump-dom"]);
+        if dom.contains("data-viewer-test=") || attempt == 3 {
+            // Pressing the keys raised no error either.
+            no_console_errors(&err);
+            assert!(dom.contains("data-status=\"ok\""), "{dom:.2000}");
+            break dom;
+        }
+    };
+    let result = dom
+        .split("data-viewer-test=\"")
+        .nth(1)
+        .and_then(|s| s.split('"').next())
+        .unwrap_or("(no result)");
+    assert_eq!(result, "pass", "the viewer's check after {attempt} load(s)");
+    dom
 }
 
 fn check_report(browser: &Path, frames: u32) {
@@ -102,13 +146,7 @@ fn check_report(browser: &Path, frames: u32) {
         dom.contains("data-status=\"ok\""),
         "page status after {attempt} load(s): {dom:.2000}\n{err}"
     );
-    for line in err.lines() {
-        let console_error = line.contains("CONSOLE") && line.contains("rror");
-        assert!(
-            !console_error && !line.contains("Uncaught"),
-            "console error: {line}"
-        );
-    }
+    no_console_errors(&err);
     // Every method and the reference are in the viewer, the recommended
     // image first.
     let data = html
@@ -142,33 +180,40 @@ fn check_report(browser: &Path, frames: u32) {
         names[data["reference"].as_u64().unwrap() as usize],
         "reference"
     );
+    // Each FLIP map is its image's: its mean is report.json's FLIP of that
+    // image, within the map's 8-bit rounding.
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let mut mapped = 0;
+    for entry in data["images"].as_array().unwrap() {
+        let name = entry["name"].as_str().unwrap();
+        let Some(want) = report["metrics"][name]["flip"].as_f64() else {
+            continue;
+        };
+        let mut sum = 0.0;
+        let mut n = 0;
+        for frame in entry["flip"].as_array().expect("a FLIP map") {
+            let bytes = base64::engine::general_purpose::STANDARD
+                .decode(frame.as_str().unwrap())
+                .unwrap();
+            sum += bytes.iter().map(|&b| b as f64 / 255.0).sum::<f64>();
+            n += bytes.len();
+        }
+        let mean = sum / n as f64;
+        assert!(
+            (mean - want).abs() <= 0.5 / 255.0 + 1e-9,
+            "{name}: its map's mean FLIP {mean} against report.json's {want}"
+        );
+        mapped += 1;
+    }
+    assert!(mapped >= 8, "{mapped} FLIP maps checked");
     assert!(dom.contains("data-name=\"sigma\""), "the σ map");
 
     // The viewer driven by its keys (tests/browser/viewer_check.js): two
     // methods differ, +1 stop doubles a linear value before the display
     // transform, the reference against itself is zero in every error view,
     // frames and zoom.
-    let check = include_str!("browser/viewer_check.js");
-    let tested = out.join("report_tested.html");
-    std::fs::write(
-        &tested,
-        html.replace("</body>", &format!("<script>{check}</script>\n</body>")),
-    )
-    .unwrap();
-    let mut attempt = 0;
-    let dom = loop {
-        attempt += 1;
-        let (dom, _) = headless(browser, &tested, &["--dump-dom"]);
-        if dom.contains("data-viewer-test=") || attempt == 3 {
-            break dom;
-        }
-    };
-    let result = dom
-        .split("data-viewer-test=\"")
-        .nth(1)
-        .and_then(|s| s.split('"').next())
-        .unwrap_or("(no result)");
-    assert_eq!(result, "pass", "the viewer's check after {attempt} load(s)");
+    let dom = viewer_check(browser, &html, &out);
     if frames == 1 {
         assert!(
             dom.contains("data-viewer-skipped"),
@@ -204,4 +249,67 @@ fn report_html_loads_without_errors_in_a_headless_browser() {
     };
     check_report(&b, 1);
     check_report(&b, 3);
+}
+
+/// sweep.html: the same viewer, with the lowest-FLIP configuration first,
+/// passes the same keyboard check.
+#[test]
+fn sweep_html_shows_its_images_in_the_viewer() {
+    let Some(b) = browser() else {
+        if std::env::var_os("PATHDENSITY_REQUIRE_BROWSER").is_some() {
+            panic!("no browser found, and PATHDENSITY_REQUIRE_BROWSER is set");
+        }
+        common::skipped("sweep.html in a browser: no chromium on PATH");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let p = SynthParams {
+        width: 32,
+        height: 24,
+        spp: 8,
+        firefly_fraction: 0.02,
+        light: Some((5, 5, 3, 20.0)),
+        ..SynthParams::default()
+    };
+    let dump = dir.path().join("d.pds");
+    p.write(&dump).unwrap();
+    let dense = SynthParams {
+        spp: 128,
+        firefly_fraction: 0.0,
+        seed: 99,
+        ..p.clone()
+    };
+    exr::write_image(dir.path(), "ref", &common::synth_mean(&dense)).unwrap();
+    let out = dir.path().join("sweep");
+    let mut o = SweepOptions::new(&dump, dir.path().join("ref.exr"), &out);
+    o.ks = vec![3, 8, 20];
+    o.sigma_colors = vec![25.0, 100.0];
+    let s = pathdensity::commands::sweep::sweep(&o).unwrap();
+    let html = std::fs::read_to_string(out.join("sweep.html")).unwrap();
+    let data = html
+        .split("<script type=\"application/json\" id=\"viewer-data\">")
+        .nth(1)
+        .and_then(|s| s.split("</script>").next())
+        .expect("the viewer's data");
+    let data: serde_json::Value = serde_json::from_str(data).unwrap();
+    let names: Vec<&str> = data["images"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| i["name"].as_str().unwrap())
+        .collect();
+    let flips: Vec<f64> = s.rows.iter().map(|r| r.metrics.unwrap().flip).collect();
+    let best = flips
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1.total_cmp(b.1))
+        .unwrap()
+        .0;
+    let want = format!("lowest FLIP: filtered, logluv k = {} ", s.rows[best].k);
+    assert!(names[0].starts_with(&want), "{names:?}, want {want}");
+    assert!(
+        names.contains(&"reference") && names.contains(&"mean"),
+        "{names:?}"
+    );
+    viewer_check(&b, &html, dir.path());
 }

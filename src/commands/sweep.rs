@@ -1,5 +1,6 @@
 //! `pathdensity sweep`: the filter over a grid of parameters, written as
-//! `sweep.csv`, `sweep.json` and two plots, each as SVG and PNG.
+//! `sweep.csv`, `sweep.json`, three plots, each as SVG and PNG, and
+//! `sweep.html` (the HDR viewer, the table and the plots).
 
 use std::path::Path;
 
@@ -68,6 +69,8 @@ fn write_sweep(s: &Sweep, dir: &Path) -> Result<()> {
         let png_bytes = plot(report::sweep::plot_k_png(s, measure))?;
         atomic::write_bytes(&dir.join(format!("{name}.png")), &png_bytes)?;
     }
+    let html = svg(report::sweep::page(s, &table(s)))?;
+    atomic::write_bytes(&dir.join("sweep.html"), &html)?;
     Ok(())
 }
 
@@ -75,7 +78,7 @@ fn write_sweep(s: &Sweep, dir: &Path) -> Result<()> {
 pub fn table(s: &Sweep) -> String {
     let front = s.pareto();
     let mut t = format!(
-        "{:>6} {:>5} {:>8} {:>8} {:>10} {:>9} {:>9} {:>9} {:>11} {:>8}\n",
+        "{:>6} {:>5} {:>8} {:>8} {:>10} {:>9} {:>9} {:>9} {:>11} {:>8} {:>8}\n",
         "space",
         "k",
         "σ_color",
@@ -85,14 +88,15 @@ pub fn table(s: &Sweep) -> String {
         "stored",
         "accepted",
         "RMS",
-        "RMS disp"
+        "RMS disp",
+        "FLIP"
     );
     for (i, r) in s.rows.iter().enumerate() {
         let mark = if front.contains(&i) { "*" } else { " " };
         match (&r.metrics, &r.failure) {
             (Some(m), _) => {
                 t += &format!(
-                    "{:>6} {:>5} {:>8} {:>8} {:>10.4} {:>9.3} {:>9} {:>8.2}% {:>10.6}{mark} {:>8.5}\n",
+                    "{:>6} {:>5} {:>8} {:>8} {:>10.4} {:>9.3} {:>9} {:>8.2}% {:>10.6}{mark} {:>8.5} {:>8.5}\n",
                     r.color_space.name(),
                     r.k,
                     r.sigma_color,
@@ -102,7 +106,8 @@ pub fn table(s: &Sweep) -> String {
                     r.stored,
                     100.0 * r.accepted_fraction,
                     m.rms,
-                    m.rms_display
+                    m.rms_display,
+                    m.flip
                 )
             }
             (None, f) => {
@@ -120,8 +125,8 @@ pub fn table(s: &Sweep) -> String {
     }
     for b in &s.baselines {
         t += &format!(
-            "{:>51} {:>9.3} {:>30.6}  {:>8.5}\n",
-            b.label, b.seconds, b.metrics.rms, b.metrics.rms_display
+            "{:>51} {:>9.3} {:>30.6}  {:>8.5} {:>8.5}\n",
+            b.label, b.seconds, b.metrics.rms, b.metrics.rms_display, b.metrics.flip
         );
     }
     t + "(* on the time–RMS Pareto front)\n"

@@ -63,7 +63,7 @@ fn frames_array(frames: &[Vec<u8>]) -> String {
     format!("[{}]", uris.join(","))
 }
 
-const STYLE: &str = r#"
+pub(crate) const STYLE: &str = r#"
 p.note { color: #a40; }
 body { font: 14px/1.4 system-ui, sans-serif; margin: 1.5em; color: #222; }
 h1 { font-size: 1.3em; } h2 { font-size: 1.1em; margin-top: 1.5em; }
@@ -80,11 +80,17 @@ figure { margin: 0; } figcaption { text-align: center; font-size: 12px; }
 .bar { display: flex; justify-content: space-between; width: var(--w); font-size: 12px; }
 "#;
 
-const SCRIPT: &str = r#"
+/// Reports an error or a console error on `<body data-status>`, where the
+/// browser tests read it.
+pub(crate) const STATUS: &str = r#"
 const status = (s) => { if (!document.body.dataset.status || s.startsWith('error')) document.body.dataset.status = s; };
 window.addEventListener('error', (e) => status('error: ' + e.message));
 const consoleError = console.error;
 console.error = (...args) => { status('error: console: ' + args.join(' ')); consoleError(...args); };
+"#;
+
+/// The previews' frames and pointer magnifier.
+const SCRIPT: &str = r#"
 const ZOOM = 8;
 function setFrame(f) {
   document.querySelectorAll('img[data-name]').forEach((img) => {
@@ -190,7 +196,7 @@ pub fn render(report: &FilterReport, assets: &Assets) -> String {
 <div class="grid">
 {figures}</div>
 {slice}
-<script>const FRAMES = {{{frames_js}}};
+<script>{STATUS}const FRAMES = {{{frames_js}}};
 {SCRIPT}</script>
 </body></html>
 "#,

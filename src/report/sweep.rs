@@ -3,7 +3,9 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
+use super::html::{STATUS, STYLE, escape};
 use super::plots::{to_png, to_svg};
+use super::viewer::{self, Kind, SCRIPT as VIEWER_SCRIPT, STYLE as VIEWER_STYLE, Shown};
 use crate::config::Method;
 use crate::metrics::Metrics;
 use crate::sweep::{Row, Sweep};
@@ -337,3 +339,87 @@ fn chart_k<DB: DrawingBackend>(
 }
 
 const PLOT_SIZE: (u32, u32) = (800, 500);
+
+/// sweep.html: the HDR viewer (the lowest-FLIP configuration's filtered
+/// image beside the reference, the lowest-RMS one's and the mean), the
+/// printed table and the plots, in one self-contained page.
+pub fn page(s: &Sweep, table: &str) -> Result<String, String> {
+    let label = |i: usize| {
+        let r = &s.rows[i];
+        format!(
+            "filtered, {} k = {} σ_color = {} σ_image = {} white = {}",
+            r.color_space.name(),
+            r.k,
+            r.sigma_color,
+            r.sigma_image,
+            r.white
+        )
+    };
+    let im = &s.images;
+    let mut shown = Vec::new();
+    if let Some((i, img)) = &im.best_flip {
+        shown.push(Shown {
+            name: format!("lowest FLIP: {}", label(*i)),
+            caption: "the configuration with the lowest FLIP".into(),
+            kind: Kind::Recommended,
+            image: img,
+        });
+    }
+    shown.push(Shown {
+        name: "reference".into(),
+        caption: s.reference.clone(),
+        kind: Kind::Reference,
+        image: &im.reference,
+    });
+    if let Some((i, img)) = &im.best_rms
+        && im.best_flip.as_ref().is_none_or(|(j, _)| j != i)
+    {
+        shown.push(Shown {
+            name: format!("lowest RMS: {}", label(*i)),
+            caption: "the configuration with the lowest RMS".into(),
+            kind: Kind::Method,
+            image: img,
+        });
+    }
+    shown.push(Shown {
+        name: "mean".into(),
+        caption: "every valid sample".into(),
+        kind: Kind::Method,
+        image: &im.mean,
+    });
+    let plots = [
+        plot_time(s)?,
+        plot_k(s, Measure::Rms)?,
+        plot_k(s, Measure::Flip)?,
+    ]
+    .join("\n");
+    let h = &s.header;
+    Ok(format!(
+        r#"<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<title>pathdensity sweep: {title}</title>
+<style>{STYLE} {VIEWER_STYLE} svg {{ max-width: 100%; height: auto; }}</style></head>
+<body>
+<script>{STATUS}</script>
+<h1>pathdensity sweep: {title}</h1>
+<p>{w} × {hh} × {frames} frame(s) against {reference}; exposure {exposure}, sRGB. {n} configurations.</p>
+<div id="viewer"></div>
+<script type="application/json" id="viewer-data">{viewer}</script>
+<script>{VIEWER_SCRIPT}</script>
+<h2>Every configuration</h2>
+<pre>{table}</pre>
+<h2>Plots</h2>
+{plots}
+</body></html>
+"#,
+        title = escape(&s.dump),
+        w = h.width,
+        hh = h.height,
+        frames = h.frames,
+        reference = escape(&s.reference),
+        exposure = s.exposure,
+        n = s.rows.len(),
+        viewer = viewer::data(&shown, s.exposure),
+        table = escape(table),
+    ))
+}

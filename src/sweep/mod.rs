@@ -177,8 +177,46 @@ pub struct Sweep {
     pub reference: String,
     pub header: Header,
     pub threads: usize,
+    /// The exposure of the display transform (RMS_display, FLIP).
+    pub exposure: f64,
     pub rows: Vec<Row>,
     pub baselines: Vec<Baseline>,
+    /// What sweep.html's viewer shows.
+    #[serde(skip)]
+    pub images: SweepImages,
+}
+
+/// The images sweep.html shows: the filtered images of the configurations
+/// with the lowest FLIP and the lowest RMS (row indices), the mean and the
+/// reference.
+#[derive(Clone, Debug)]
+pub struct SweepImages {
+    pub reference: Image,
+    pub mean: Image,
+    pub best_flip: Option<(usize, Image)>,
+    pub best_rms: Option<(usize, Image)>,
+}
+
+impl SweepImages {
+    /// Keeps row `i`'s filtered image where it is the best so far.
+    fn offer(&mut self, rows: &[Row], i: usize, image: Image) {
+        let Some(m) = rows[i].metrics else { return };
+        let better = |best: &Option<(usize, Image)>, of: fn(&Metrics) -> f64| {
+            best.as_ref()
+                .is_none_or(|(j, _)| rows[*j].metrics.is_none_or(|b| of(&m) < of(&b)))
+        };
+        let flip = better(&self.best_flip, |m| m.flip);
+        let rms = better(&self.best_rms, |m| m.rms);
+        match (flip, rms) {
+            (true, true) => {
+                self.best_rms = Some((i, image.clone()));
+                self.best_flip = Some((i, image));
+            }
+            (true, false) => self.best_flip = Some((i, image)),
+            (false, true) => self.best_rms = Some((i, image)),
+            (false, false) => {}
+        }
+    }
 }
 
 /// Every configuration of the grid, in nested order (white outermost, k
@@ -239,7 +277,7 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
     let compare = |img: &Image| metrics::compare(img, &reference, o.config.exposure).pooled;
     let shared = Shared::new(records, &h);
     let base_white = pipeline::resolve_white(&o.config, records, &h)?;
-    let (baselines, valid) = pool.install(|| {
+    let (baselines, valid, mean) = pool.install(|| {
         let base = &o.config;
         let white = base_white;
         let core = pipeline::reconstruct(records, &h, base, |_| true, 0.0);
@@ -273,13 +311,19 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
                 }
             }
         }
-        Ok::<_, anyhow::Error>((baselines, valid))
+        Ok::<_, anyhow::Error>((baselines, valid, core.reconstruction.mean))
     })?;
 
     let configs = grid(o);
     progress.set_length(configs.len() as u64);
     let mut whites: Vec<(White, Result<f64, String>)> = Vec::new();
     let mut rows = Vec::new();
+    let mut images = SweepImages {
+        reference,
+        mean,
+        best_flip: None,
+        best_rms: None,
+    };
     for config in configs {
         let white_value = match whites.iter().find(|e| e.0 == config.white) {
             Some(e) => e.1.clone(),
@@ -289,16 +333,21 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
                 v
             }
         };
-        let row = match white_value {
-            Ok(white) => {
-                pool.install(|| configuration(records, &h, &config, white, &reference, valid))
-            }
-            Err(failure) => Row {
-                failure: Some(failure),
-                ..Row::unrun(&config, f64::NAN)
-            },
+        let (row, filtered) = match white_value {
+            Ok(white) => pool
+                .install(|| configuration(records, &h, &config, white, &images.reference, valid)),
+            Err(failure) => (
+                Row {
+                    failure: Some(failure),
+                    ..Row::unrun(&config, f64::NAN)
+                },
+                None,
+            ),
         };
         rows.push(row);
+        if let Some(filtered) = filtered {
+            images.offer(&rows, rows.len() - 1, filtered);
+        }
         progress.inc(1);
     }
     progress.finish();
@@ -308,13 +357,15 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
         reference: o.reference.display().to_string(),
         header: h,
         threads: pool.current_num_threads(),
+        exposure: o.config.exposure,
         rows,
         baselines,
+        images,
     })
 }
 
-/// Runs one configuration; a configuration that cannot run is a row with
-/// its reason.
+/// Runs one configuration, and gives its filtered image; a configuration
+/// that cannot run is a row with its reason.
 fn configuration(
     records: &[Record],
     h: &Header,
@@ -322,7 +373,7 @@ fn configuration(
     white_value: f64,
     reference: &Image,
     valid: u64,
-) -> Row {
+) -> (Row, Option<Image>) {
     let mut row = Row::unrun(config, white_value);
     // A k the dump cannot serve is the first thing a sweep's reader needs
     // to know about a row, before any other refusal.
@@ -339,7 +390,7 @@ fn configuration(
         .and_then(|()| pipeline::check_counted(config, h, valid));
     if let Err(e) = refused {
         row.failure = Some(e.to_string());
-        return row;
+        return (row, None);
     }
     let t = Instant::now();
     let result = pipeline::replay(
@@ -372,7 +423,7 @@ fn configuration(
         config.energy_sigma,
     );
     row.energy_metrics = Some(metrics::compare(&energy_aware, reference, config.exposure).pooled);
-    row
+    (row, Some(core.reconstruction.filtered))
 }
 
 impl Row {

@@ -177,6 +177,28 @@ pub fn venv_python(tool: &str, probe: &str) -> Option<PathBuf> {
     ok.then_some(p)
 }
 
+/// tools/oidn/.venv's python and the folder of the pyoidn wheel's OIDN
+/// library (for `OIDN_DIR`), if tools/oidn/setup.sh has run; else a loud
+/// skip, or a failure under `PATHDENSITY_REQUIRE_OIDN`.
+#[allow(dead_code)]
+pub fn oidn() -> Option<(PathBuf, String)> {
+    let probe = "import os, pyoidn; print(os.path.join(os.path.dirname(pyoidn.__file__), 'oidn'))";
+    let py = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/oidn/.venv/bin/python");
+    let found = std::process::Command::new(&py)
+        .args(["-c", probe])
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    match found {
+        Some(dir) => Some((py, dir)),
+        None => missing(
+            "PATHDENSITY_REQUIRE_OIDN",
+            "OIDN is not set up (bash tools/oidn/setup.sh)",
+        ),
+    }
+}
+
 /// Whether `python3` can import numpy; with `PATHDENSITY_REQUIRE_NUMPY`
 /// set (CI sets it) its absence fails the test instead of skipping it.
 pub fn python_with_numpy() -> bool {

@@ -21,6 +21,7 @@ use pyo3::types::{PyDict, PyString};
 
 use pathdensity_core::config::FilterConfig;
 use pathdensity_core::density::ExactSigma;
+use pathdensity_core::imagespace::oidn::{self, Aux};
 use pathdensity_core::method::MethodSet;
 use pathdensity_core::pipeline::{self, PipelineError, RunOptions};
 use pathdensity_core::progress::Silent;
@@ -240,7 +241,18 @@ use pyo3::exceptions::PyTypeError;
 
 /// A reference image as the pipeline takes it: `(H, W, 3)` for a still,
 /// `(frames, H, W, 3)` for any film; float32 or float64; finite.
+/// A reference: [`film_of`] with finite values only.
 fn reference_of(r: &Bound<'_, PyAny>, h: &Header) -> PyResult<Image> {
+    let img = film_of("reference", r, h)?;
+    if img.data.iter().flatten().any(|v| !v.is_finite()) {
+        return Err(value_error("reference holds non-finite values"));
+    }
+    Ok(img)
+}
+
+/// `name`'s float array of the film's shape, (H, W, 3) for a still or
+/// (frames, H, W, 3), as an image.
+fn film_of(name: &str, r: &Bound<'_, PyAny>, h: &Header) -> PyResult<Image> {
     let (w, ht, f) = (h.width as usize, h.height as usize, h.frames as usize);
     let py = r.py();
     let np = py.import("numpy")?;
@@ -249,7 +261,7 @@ fn reference_of(r: &Bound<'_, PyAny>, h: &Header) -> PyResult<Image> {
     let array = np.call_method1("asarray", (r, "float64"))?;
     let array = array
         .cast::<PyArrayDyn<f64>>()
-        .map_err(|_| value_error("reference must be a float array"))?;
+        .map_err(|_| value_error(format!("{name} must be a float array")))?;
     let shape = array.shape().to_vec();
     let ok = match shape.as_slice() {
         [hh, ww, 3] => f == 1 && (*hh, *ww) == (ht, w),
@@ -258,7 +270,7 @@ fn reference_of(r: &Bound<'_, PyAny>, h: &Header) -> PyResult<Image> {
     };
     if !ok {
         return Err(value_error(format!(
-            "reference has shape {}, the film is {f} frames of {w} × {ht} (expected ({f}, {ht}, {w}, 3){})",
+            "{name} has shape {}, the film is {f} frames of {w} × {ht} (expected ({f}, {ht}, {w}, 3){})",
             shape_str(&shape),
             if f == 1 {
                 format!(" or ({ht}, {w}, 3)")
@@ -279,10 +291,34 @@ fn reference_of(r: &Bound<'_, PyAny>, h: &Header) -> PyResult<Image> {
     {
         *px = [p[0], p[1], p[2]];
     }
-    if img.data.iter().flatten().any(|v| !v.is_finite()) {
-        return Err(value_error("reference holds non-finite values"));
-    }
     Ok(img)
+}
+
+/// OIDN's auxiliary images from `albedo=` and `normal=`, refused as the
+/// command refuses `--albedo` and `--normal`.
+fn aux_of(
+    albedo: Option<&Bound<'_, PyAny>>,
+    normal: Option<&Bound<'_, PyAny>>,
+    h: &Header,
+) -> PyResult<Option<Aux>> {
+    let Some(albedo) = albedo else {
+        if normal.is_some() {
+            return Err(value_error(
+                "normal needs albedo (OIDN takes a normal only with an albedo)",
+            ));
+        }
+        return Ok(None);
+    };
+    let aux = Aux {
+        albedo: film_of("albedo", albedo, h)?,
+        normal: normal.map(|n| film_of("normal", n, h)).transpose()?,
+    };
+    if let Err(why) = oidn::library() {
+        return Err(value_error(format!(
+            "albedo is OIDN's input, and {why} (README, \"OIDN\")"
+        )));
+    }
+    Ok(Some(aux))
 }
 
 /// An image as the `filter` command writes it to EXR (rounded to f32,
@@ -363,7 +399,8 @@ impl FilterResult {
 }
 
 /// filter(records, width=None, height=None, frames=1, spp=0, order="unspecified",
-///        *, header=None, reference=None, threads=0, sigma_map=False, **config)
+///        *, header=None, reference=None, albedo=None, normal=None, threads=0,
+///        sigma_map=False, **config)
 ///
 /// Runs the path-density filter and every selected method on `records`, a
 /// C-contiguous (N, 6) float32 array (x, y, t, r, g, b), read in place. The
@@ -371,10 +408,11 @@ impl FilterResult {
 /// returns). `config` is any FilterConfig field, named as in report.json's
 /// "config" (k=10, sigma_color=100.0, white="auto", methods="median,clamp"
 /// or a list of names); the rest default as the command line's. `reference`
-/// is a float array (H, W, 3) or (frames, H, W, 3). The GIL is released
+/// is a float array (H, W, 3) or (frames, H, W, 3); so are `albedo` and
+/// `normal`, OIDN's auxiliary inputs (as `--albedo` and `--normal`). The GIL is released
 /// while the filter runs; do not write to `records` meanwhile.
 #[pyfunction]
-#[pyo3(signature = (records, width=None, height=None, frames=1, spp=0, order="unspecified", *, header=None, reference=None, threads=0, sigma_map=false, **config))]
+#[pyo3(signature = (records, width=None, height=None, frames=1, spp=0, order="unspecified", *, header=None, reference=None, albedo=None, normal=None, threads=0, sigma_map=false, **config))]
 #[allow(clippy::too_many_arguments)]
 fn filter(
     py: Python<'_>,
@@ -386,6 +424,8 @@ fn filter(
     order: &str,
     header: Option<&Bound<'_, PyDict>>,
     reference: Option<&Bound<'_, PyAny>>,
+    albedo: Option<&Bound<'_, PyAny>>,
+    normal: Option<&Bound<'_, PyAny>>,
     threads: usize,
     sigma_map: bool,
     config: Option<&Bound<'_, PyDict>>,
@@ -422,6 +462,7 @@ fn filter(
     };
     let config = config_of(config)?;
     let reference = reference.map(|r| reference_of(r, &h)).transpose()?;
+    let aux = aux_of(albedo, normal, &h)?;
     let threads = threads.min(pathdensity_core::par::max_threads());
     let exact_sigma = if sigma_map {
         ExactSigma::All
@@ -439,7 +480,7 @@ fn filter(
                     exact_sigma,
                     reference: reference.as_ref(),
                     progress: &Silent,
-                    aux: None,
+                    aux: aux.as_ref(),
                 },
             )
         })

@@ -315,6 +315,40 @@ def test_errors_carry_the_command_lines_message(tmp_path):
         assert line == f"pathdensity: {e.value}"
 
 
+def test_albedo_and_normal_are_the_commands_flags(tmp_path):
+    """albedo= and normal= are --albedo and --normal: the command's images
+    where OIDN is found, its refusal where it is not
+    (PATHDENSITY_EXPECT_OIDN=1 requires the first)."""
+    dump = synth(tmp_path / "d.pds", width=24, height=16, spp=8, fireflies=0.01)
+    h, r = pd.read_dump(dump)
+    # Two film-sized EXRs stand for a renderer's albedo and normal.
+    aux = synth(tmp_path / "aux.pds", width=24, height=16, spp=4, seed=3)
+    cli("filter", aux, "-o", tmp_path / "aux", "--no-html", "--methods", "median")
+    a_exr, n_exr = tmp_path / "aux" / "mean.exr", tmp_path / "aux" / "median.exr"
+    albedo, normal = (read_exrs([p], tmp_path)[0] for p in (a_exr, n_exr))
+    out = tmp_path / "o"
+    p = cli("filter", dump, "-o", out, "--no-html", "--albedo", a_exr, "--normal", n_exr, ok=False)
+    if os.environ.get("PATHDENSITY_EXPECT_OIDN") == "1":
+        assert p.returncode == 0, p.stderr
+    if p.returncode == 0:
+        res = pd.filter(r, header=h, albedo=albedo, normal=normal)
+        assert "guided_oidn" in res.images
+        for name, image in res.images.items():
+            assert same_bits(image, read_exrs([out / f"{name}.exr"], tmp_path)), name
+        # The albedo changes OIDN's image.
+        plain = pd.filter(r, header=h, methods="guided_oidn")
+        assert not same_bits(plain.images["guided_oidn"], res.images["guided_oidn"])
+    else:
+        line = one_line(p)
+        with pytest.raises(ValueError) as e:
+            pd.filter(r, header=h, albedo=albedo, normal=normal)
+        assert line == "pathdensity: --albedo " + str(e.value)[len("albedo") + 1:]
+    with pytest.raises(ValueError, match="normal needs albedo"):
+        pd.filter(r, header=h, normal=normal)
+    with pytest.raises(ValueError, match=r"albedo has shape \(4, 24, 3\)"):
+        pd.filter(r, header=h, albedo=albedo[:4])
+
+
 def test_the_gil_is_released_during_the_filter(tmp_path):
     """Another Python thread keeps counting while filter runs."""
     _, r = pd.read_dump(synth(tmp_path / "d.pds", width=160, height=160, spp=32, fireflies=0.01))

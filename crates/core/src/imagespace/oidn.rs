@@ -341,10 +341,7 @@ pub enum OidnError {
     NoFilter,
     /// The library reported an error while doing `what`.
     #[error("OIDN: {what}: {message}")]
-    Device {
-        what: &'static str,
-        message: String,
-    },
+    Device { what: &'static str, message: String },
 }
 
 /// OIDN's `RT` filter (HDR) on every frame of `img`, with `aux` when given.
