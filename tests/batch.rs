@@ -154,6 +154,8 @@ fn shards_then_merge_give_one_process_summary_and_bad_dumps_fail_their_rows() {
         "filtered.rms_display",
         "mean.energy",
         "filtered.temporal_rms_display",
+        "filtered.flip",
+        "mean.hdr_flip",
         "total_seconds",
     ] {
         assert!(header.split(',').any(|c| c == col), "{col} in {header}");
@@ -172,8 +174,10 @@ fn shards_then_merge_give_one_process_summary_and_bad_dumps_fail_their_rows() {
             .unwrap()
             > 0.0
     );
+    assert!(moving["metrics"]["filtered"]["flip"].as_f64().unwrap() > 0.0);
     let html = std::fs::read_to_string(one.join("summary.html")).unwrap();
     assert!(html.contains("<svg") && html.contains("Temporal stability"));
+    assert!(html.contains("<h2>FLIP of each image"), "the FLIP plot");
 
     // A merge before every shard is done, and one of mixed batches.
     let partial = dir.path().join("partial");

@@ -14,7 +14,6 @@ use std::process::Command;
 
 use pathdensity::io::exr;
 
-
 use common::oidn;
 
 /// The binary with `OIDN_DIR` set for it (the library is found at run

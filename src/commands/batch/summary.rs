@@ -164,7 +164,7 @@ const FIXED: [&str; 24] = [
 ];
 
 /// `summary.csv`: the fixed columns, then per image `IMAGE.rms`,
-/// `IMAGE.rms_display`, `IMAGE.energy` (and for animations
+/// `IMAGE.rms_display`, `IMAGE.energy`, `IMAGE.flip`, `IMAGE.hdr_flip` (and for animations
 /// `IMAGE.temporal_rms`, `IMAGE.temporal_rms_display`). A frame's row
 /// (`frame` 0, 1, …) has that frame's metrics and leaves the dump's
 /// counts and times to the dump's row (`frame` empty).
