@@ -251,8 +251,8 @@ fn report_html_loads_without_errors_in_a_headless_browser() {
     check_report(&b, 3);
 }
 
-/// sweep.html: the same viewer, with the lowest-FLIP configuration first,
-/// passes the same keyboard check.
+/// sweep.html's viewer passes the same keyboard check (tests/sweep.rs
+/// checks what it shows).
 #[test]
 fn sweep_html_shows_its_images_in_the_viewer() {
     let Some(b) = browser() else {
@@ -284,32 +284,7 @@ fn sweep_html_shows_its_images_in_the_viewer() {
     let mut o = SweepOptions::new(&dump, dir.path().join("ref.exr"), &out);
     o.ks = vec![3, 8, 20];
     o.sigma_colors = vec![25.0, 100.0];
-    let s = pathdensity::commands::sweep::sweep(&o).unwrap();
+    pathdensity::commands::sweep::sweep(&o).unwrap();
     let html = std::fs::read_to_string(out.join("sweep.html")).unwrap();
-    let data = html
-        .split("<script type=\"application/json\" id=\"viewer-data\">")
-        .nth(1)
-        .and_then(|s| s.split("</script>").next())
-        .expect("the viewer's data");
-    let data: serde_json::Value = serde_json::from_str(data).unwrap();
-    let names: Vec<&str> = data["images"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|i| i["name"].as_str().unwrap())
-        .collect();
-    let flips: Vec<f64> = s.rows.iter().map(|r| r.metrics.unwrap().flip).collect();
-    let best = flips
-        .iter()
-        .enumerate()
-        .min_by(|a, b| a.1.total_cmp(b.1))
-        .unwrap()
-        .0;
-    let want = format!("lowest FLIP: filtered, logluv k = {} ", s.rows[best].k);
-    assert!(names[0].starts_with(&want), "{names:?}, want {want}");
-    assert!(
-        names.contains(&"reference") && names.contains(&"mean"),
-        "{names:?}"
-    );
     viewer_check(&b, &html, dir.path());
 }

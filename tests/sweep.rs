@@ -130,6 +130,48 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("sweep.json")).unwrap()).unwrap();
     assert_eq!(json["rows"].as_array().unwrap().len(), 24);
+    // Baselines keep their name under "method", their Method is not written.
+    assert_eq!(json["baselines"][0]["method"], "mean");
+    assert!(json["baselines"][0].get("image").is_none());
+    // sweep.html's viewer: the lowest-FLIP row first, named in full, then
+    // the reference, the lowest-RMS row (when another) and the mean.
+    let html = std::fs::read_to_string(out.join("sweep.html")).unwrap();
+    let data = html
+        .split("<script type=\"application/json\" id=\"viewer-data\">")
+        .nth(1)
+        .and_then(|s| s.split("</script>").next())
+        .expect("the viewer's data");
+    let data: serde_json::Value = serde_json::from_str(data).unwrap();
+    let names: Vec<&str> = data["images"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| i["name"].as_str().unwrap())
+        .collect();
+    let lowest = |of: fn(&pathdensity::metrics::Metrics) -> f64| {
+        let (i, r) = s
+            .rows
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| r.metrics.is_some())
+            .min_by(|a, b| of(&a.1.metrics.unwrap()).total_cmp(&of(&b.1.metrics.unwrap())))
+            .unwrap();
+        let label = format!(
+            "filtered, {} k = {} σ_color = {} σ_image = {} white = {} final pass {}",
+            r.color_space, r.k, r.sigma_color, r.sigma_image, r.white, r.final_pass
+        );
+        (i, label)
+    };
+    let (flip_row, flip_label) = lowest(|m| m.flip);
+    let (rms_row, rms_label) = lowest(|m| m.rms);
+    let mut want = vec![format!("lowest FLIP: {flip_label}"), "reference".into()];
+    if rms_row != flip_row {
+        want.push(format!("lowest RMS: {rms_label}"));
+    }
+    want.push("mean".into());
+    assert_eq!(names, want);
+    assert_eq!(data["recommended"], 0);
+    assert_eq!(data["reference"], 1);
     for f in ["rms_vs_time.svg", "rms_vs_k.svg", "flip_vs_k.svg"] {
         assert!(
             std::fs::read_to_string(out.join(f))

@@ -10,7 +10,7 @@ use anyhow::{Context, Result, bail};
 use crate::config::{FilterConfig, Method};
 use crate::density::{Decision, ExactSigma};
 use crate::dump::{DumpReader, Header};
-use crate::imagespace::oidn::{self, Aux};
+use crate::imagespace::oidn::Aux;
 use crate::io::atomic::{self, Staging};
 use crate::io::guard::Inputs;
 use crate::io::{exr, png};
@@ -216,13 +216,7 @@ fn read_aux(
         }
         return Ok(None);
     };
-    if let Err(why) = oidn::library() {
-        return Err(crate::config::ConfigError {
-            field: "albedo",
-            problem: format!("is OIDN's input, and {why} (README, \"OIDN\")"),
-        }
-        .into());
-    }
+    pipeline::check_aux()?;
     Ok(Some(Aux {
         albedo: film(albedo)?,
         normal: opts.normal.as_ref().map(film).transpose()?,

@@ -48,29 +48,38 @@ pub fn sweep_with_progress(o: &SweepOptions, progress: &dyn Progress) -> Result<
     Ok(s)
 }
 
-/// Writes the sweep's tables and plots into `dir`.
+/// Writes the sweep's tables, plots and page into `dir`.
 fn write_sweep(s: &Sweep, dir: &Path) -> Result<()> {
     atomic::write_bytes(&dir.join("sweep.csv"), report::sweep::csv(s).as_bytes())?;
     let json = serde_json::to_vec_pretty(s).expect("a sweep serialises");
     atomic::write_bytes(&dir.join("sweep.json"), &json)?;
     let plot = |r: Result<Vec<u8>, String>| r.map_err(|e| anyhow!("cannot draw a plot: {e}"));
-    let svg = |r: Result<String, String>| plot(r.map(String::into_bytes));
-    atomic::write_bytes(
-        &dir.join("rms_vs_time.svg"),
-        &svg(report::sweep::plot_time(s))?,
-    )?;
-    atomic::write_bytes(
-        &dir.join("rms_vs_time.png"),
-        &plot(report::sweep::plot_time_png(s))?,
-    )?;
-    for (name, measure) in [("rms_vs_k", Measure::Rms), ("flip_vs_k", Measure::Flip)] {
-        let svg_bytes = svg(report::sweep::plot_k(s, measure))?;
-        atomic::write_bytes(&dir.join(format!("{name}.svg")), &svg_bytes)?;
-        let png_bytes = plot(report::sweep::plot_k_png(s, measure))?;
-        atomic::write_bytes(&dir.join(format!("{name}.png")), &png_bytes)?;
+    let svg = |r: Result<String, String>| r.map_err(|e| anyhow!("cannot draw a plot: {e}"));
+    let mut svgs = Vec::new();
+    for (name, svg_text, png) in [
+        (
+            "rms_vs_time",
+            report::sweep::plot_time(s),
+            report::sweep::plot_time_png(s),
+        ),
+        (
+            "rms_vs_k",
+            report::sweep::plot_k(s, Measure::Rms),
+            report::sweep::plot_k_png(s, Measure::Rms),
+        ),
+        (
+            "flip_vs_k",
+            report::sweep::plot_k(s, Measure::Flip),
+            report::sweep::plot_k_png(s, Measure::Flip),
+        ),
+    ] {
+        let svg_text = svg(svg_text)?;
+        atomic::write_bytes(&dir.join(format!("{name}.svg")), svg_text.as_bytes())?;
+        atomic::write_bytes(&dir.join(format!("{name}.png")), &plot(png)?)?;
+        svgs.push(svg_text);
     }
-    let html = svg(report::sweep::page(s, &table(s)))?;
-    atomic::write_bytes(&dir.join("sweep.html"), &html)?;
+    let html = report::sweep::page(s, &table(s), &svgs);
+    atomic::write_bytes(&dir.join("sweep.html"), html.as_bytes())?;
     Ok(())
 }
 
@@ -125,7 +134,7 @@ pub fn table(s: &Sweep) -> String {
     }
     for b in &s.baselines {
         t += &format!(
-            "{:>51} {:>9.3} {:>30.6}  {:>8.5} {:>8.5}\n",
+            "{:>41} {:>9.3} {:>30.6}  {:>8.5} {:>8.5}\n",
             b.label, b.seconds, b.metrics.rms, b.metrics.rms_display, b.metrics.flip
         );
     }

@@ -277,7 +277,7 @@ fn chart_k<DB: DrawingBackend>(
     let mean_rms = s
         .baselines
         .iter()
-        .find(|b| b.image == Method::Mean)
+        .find(|b| b.method == Method::Mean)
         .map_or(0.0, |b| value(&b.metrics));
     let e_max = s
         .ok_rows()
@@ -315,7 +315,7 @@ fn chart_k<DB: DrawingBackend>(
             .label(name)
             .legend(move |(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], color));
     }
-    if let Some(mean) = s.baselines.iter().find(|b| b.image == Method::Mean) {
+    if let Some(mean) = s.baselines.iter().find(|b| b.method == Method::Mean) {
         let y = value(&mean.metrics);
         chart
             .draw_series(LineSeries::new(
@@ -342,22 +342,23 @@ const PLOT_SIZE: (u32, u32) = (800, 500);
 
 /// sweep.html: the HDR viewer (the lowest-FLIP configuration's filtered
 /// image beside the reference, the lowest-RMS one's and the mean), the
-/// printed table and the plots, in one self-contained page.
-pub fn page(s: &Sweep, table: &str) -> Result<String, String> {
+/// printed `table` and the `plots` (SVG), in one self-contained page.
+pub fn page(s: &Sweep, table: &str, plots: &[String]) -> String {
     let label = |i: usize| {
         let r = &s.rows[i];
         format!(
-            "filtered, {} k = {} σ_color = {} σ_image = {} white = {}",
+            "filtered, {} k = {} σ_color = {} σ_image = {} white = {} final pass {}",
             r.color_space.name(),
             r.k,
             r.sigma_color,
             r.sigma_image,
-            r.white
+            r.white,
+            r.final_pass.name()
         )
     };
     let im = &s.images;
     let mut shown = Vec::new();
-    if let Some((i, img)) = &im.best_flip {
+    if let Some((i, img)) = &im.lowest_flip {
         shown.push(Shown {
             name: format!("lowest FLIP: {}", label(*i)),
             caption: "the configuration with the lowest FLIP".into(),
@@ -371,9 +372,7 @@ pub fn page(s: &Sweep, table: &str) -> Result<String, String> {
         kind: Kind::Reference,
         image: &im.reference,
     });
-    if let Some((i, img)) = &im.best_rms
-        && im.best_flip.as_ref().is_none_or(|(j, _)| j != i)
-    {
+    if let Some((i, img)) = &im.lowest_rms {
         shown.push(Shown {
             name: format!("lowest RMS: {}", label(*i)),
             caption: "the configuration with the lowest RMS".into(),
@@ -387,14 +386,8 @@ pub fn page(s: &Sweep, table: &str) -> Result<String, String> {
         kind: Kind::Method,
         image: &im.mean,
     });
-    let plots = [
-        plot_time(s)?,
-        plot_k(s, Measure::Rms)?,
-        plot_k(s, Measure::Flip)?,
-    ]
-    .join("\n");
     let h = &s.header;
-    Ok(format!(
+    format!(
         r#"<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <title>pathdensity sweep: {title}</title>
@@ -421,5 +414,6 @@ pub fn page(s: &Sweep, table: &str) -> Result<String, String> {
         n = s.rows.len(),
         viewer = viewer::data(&shown, s.exposure),
         table = escape(table),
-    ))
+        plots = plots.join("\n"),
+    )
 }

@@ -94,7 +94,7 @@ pub fn data(images: &[Shown], exposure: f64) -> String {
         String::new()
     } else {
         format!(
-            "Left out of the viewer for the page's size (their EXR and PNG files are beside it): {}.",
+            "Left out of the viewer for the page's size: {}.",
             left_out.join(", ")
         )
     };

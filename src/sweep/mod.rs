@@ -163,7 +163,7 @@ pub struct Row {
 pub struct Baseline {
     /// The method whose image this is.
     #[serde(skip)]
-    pub image: Method,
+    pub method: Method,
     /// Its name, and for a peer method the value of its swept parameter.
     #[serde(rename = "method")]
     pub label: String,
@@ -186,37 +186,34 @@ pub struct Sweep {
     pub images: SweepImages,
 }
 
-/// The images sweep.html shows: the filtered images of the configurations
-/// with the lowest FLIP and the lowest RMS (row indices), the mean and the
+/// The images sweep.html shows: the filtered images of the rows with the
+/// lowest FLIP and (when another row) the lowest RMS, the mean and the
 /// reference.
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct SweepImages {
     pub reference: Image,
     pub mean: Image,
-    pub best_flip: Option<(usize, Image)>,
-    pub best_rms: Option<(usize, Image)>,
+    pub lowest_flip: Option<(usize, Image)>,
+    pub lowest_rms: Option<(usize, Image)>,
 }
 
-impl SweepImages {
-    /// Keeps row `i`'s filtered image where it is the best so far.
-    fn offer(&mut self, rows: &[Row], i: usize, image: Image) {
-        let Some(m) = rows[i].metrics else { return };
-        let better = |best: &Option<(usize, Image)>, of: fn(&Metrics) -> f64| {
-            best.as_ref()
-                .is_none_or(|(j, _)| rows[*j].metrics.is_none_or(|b| of(&m) < of(&b)))
-        };
-        let flip = better(&self.best_flip, |m| m.flip);
-        let rms = better(&self.best_rms, |m| m.rms);
-        match (flip, rms) {
-            (true, true) => {
-                self.best_rms = Some((i, image.clone()));
-                self.best_flip = Some((i, image));
-            }
-            (true, false) => self.best_flip = Some((i, image)),
-            (false, true) => self.best_rms = Some((i, image)),
-            (false, false) => {}
-        }
+impl std::fmt::Debug for SweepImages {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let row = |b: &Option<(usize, Image)>| b.as_ref().map(|(i, _)| *i);
+        f.debug_struct("SweepImages")
+            .field("lowest_flip", &row(&self.lowest_flip))
+            .field("lowest_rms", &row(&self.lowest_rms))
+            .finish_non_exhaustive()
     }
+}
+
+/// The row whose filtered image has the lowest `of` (the first on a tie).
+fn lowest(rows: &[Row], of: fn(&Metrics) -> f64) -> Option<usize> {
+    rows.iter()
+        .enumerate()
+        .filter_map(|(i, r)| r.metrics.as_ref().map(|m| (i, of(m))))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(i, _)| i)
 }
 
 /// Every configuration of the grid, in nested order (white outermost, k
@@ -293,7 +290,7 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
                 .image(method)
                 .map_err(|e| anyhow::anyhow!("{label}: {e}"))?;
             baselines.push(Baseline {
-                image: method,
+                method,
                 label,
                 seconds,
                 metrics: compare(&img),
@@ -317,39 +314,64 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
     let configs = grid(o);
     progress.set_length(configs.len() as u64);
     let mut whites: Vec<(White, Result<f64, String>)> = Vec::new();
-    let mut rows = Vec::new();
-    let mut images = SweepImages {
-        reference,
-        mean,
-        best_flip: None,
-        best_rms: None,
-    };
-    for config in configs {
-        let white_value = match whites.iter().find(|e| e.0 == config.white) {
-            Some(e) => e.1.clone(),
-            None => {
-                let v = pipeline::resolve_white(&config, records, &h).map_err(|e| e.to_string());
-                whites.push((config.white, v.clone()));
-                v
-            }
-        };
-        let (row, filtered) = match white_value {
-            Ok(white) => pool
-                .install(|| configuration(records, &h, &config, white, &images.reference, valid)),
-            Err(failure) => (
-                Row {
-                    failure: Some(failure),
-                    ..Row::unrun(&config, f64::NAN)
+    let mut white_of = |white: &White| match whites.iter().find(|e| e.0 == *white) {
+        Some(e) => e.1.clone(),
+        None => {
+            let v = pipeline::resolve_white(
+                &FilterConfig {
+                    white: *white,
+                    ..o.config
                 },
-                None,
-            ),
+                records,
+                &h,
+            )
+            .map_err(|e| e.to_string());
+            whites.push((*white, v.clone()));
+            v
+        }
+    };
+    let mut rows = Vec::new();
+    for config in &configs {
+        let row = match white_of(&config.white) {
+            Ok(white) => pool.install(|| {
+                configuration(records, &h, config, white, &reference, valid, &mut None)
+            }),
+            Err(failure) => Row {
+                failure: Some(failure),
+                ..Row::unrun(config, f64::NAN)
+            },
         };
         rows.push(row);
-        if let Some(filtered) = filtered {
-            images.offer(&rows, rows.len() - 1, filtered);
-        }
         progress.inc(1);
     }
+    // The page's images: the one or two winning rows run again (the same
+    // bytes), rather than every row's image held while the grid runs.
+    let image_of = |i: usize| {
+        let mut image = None;
+        let white = rows[i].white_value;
+        pool.install(|| {
+            configuration(
+                records,
+                &h,
+                &configs[i],
+                white,
+                &reference,
+                valid,
+                &mut image,
+            )
+        });
+        image.map(|img| (i, img))
+    };
+    let flip_row = lowest(&rows, |m| m.flip);
+    let rms_row = lowest(&rows, |m| m.rms).filter(|&i| Some(i) != flip_row);
+    let lowest_flip = flip_row.and_then(image_of);
+    let lowest_rms = rms_row.and_then(image_of);
+    let images = SweepImages {
+        reference,
+        mean,
+        lowest_flip,
+        lowest_rms,
+    };
     progress.finish();
     dump.intact()?;
     Ok(Sweep {
@@ -364,8 +386,9 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
     })
 }
 
-/// Runs one configuration, and gives its filtered image; a configuration
-/// that cannot run is a row with its reason.
+/// Runs one configuration, and when `image` is asked for, gives its
+/// filtered image there; a configuration that cannot run is a row with its
+/// reason.
 fn configuration(
     records: &[Record],
     h: &Header,
@@ -373,10 +396,9 @@ fn configuration(
     white_value: f64,
     reference: &Image,
     valid: u64,
-) -> (Row, Option<Image>) {
+    image: &mut Option<Image>,
+) -> Row {
     let mut row = Row::unrun(config, white_value);
-    // A k the dump cannot serve is the first thing a sweep's reader needs
-    // to know about a row, before any other refusal.
     // The dump's valid samples were counted once for the whole sweep.
     // k first: a k the dump cannot serve is what a sweep's reader needs
     // to know about a row before any other refusal.
@@ -390,7 +412,7 @@ fn configuration(
         .and_then(|()| pipeline::check_counted(config, h, valid));
     if let Err(e) = refused {
         row.failure = Some(e.to_string());
-        return (row, None);
+        return row;
     }
     let t = Instant::now();
     let result = pipeline::replay(
@@ -423,7 +445,8 @@ fn configuration(
         config.energy_sigma,
     );
     row.energy_metrics = Some(metrics::compare(&energy_aware, reference, config.exposure).pooled);
-    (row, Some(core.reconstruction.filtered))
+    *image = Some(core.reconstruction.filtered);
+    row
 }
 
 impl Row {

@@ -21,7 +21,7 @@ use pyo3::types::{PyDict, PyString};
 
 use pathdensity_core::config::FilterConfig;
 use pathdensity_core::density::ExactSigma;
-use pathdensity_core::imagespace::oidn::{self, Aux};
+use pathdensity_core::imagespace::oidn::Aux;
 use pathdensity_core::method::MethodSet;
 use pathdensity_core::pipeline::{self, PipelineError, RunOptions};
 use pathdensity_core::progress::Silent;
@@ -239,9 +239,7 @@ fn config_of(options: Option<&Bound<'_, PyDict>>) -> PyResult<FilterConfig> {
 
 use pyo3::exceptions::PyTypeError;
 
-/// A reference image as the pipeline takes it: `(H, W, 3)` for a still,
-/// `(frames, H, W, 3)` for any film; float32 or float64; finite.
-/// A reference: [`film_of`] with finite values only.
+/// A reference image as the pipeline takes it ([`film_of`]), finite.
 fn reference_of(r: &Bound<'_, PyAny>, h: &Header) -> PyResult<Image> {
     let img = film_of("reference", r, h)?;
     if img.data.iter().flatten().any(|v| !v.is_finite()) {
@@ -250,8 +248,8 @@ fn reference_of(r: &Bound<'_, PyAny>, h: &Header) -> PyResult<Image> {
     Ok(img)
 }
 
-/// `name`'s float array of the film's shape, (H, W, 3) for a still or
-/// (frames, H, W, 3), as an image.
+/// `name`'s float32 or float64 array of the film's shape, `(H, W, 3)` for
+/// a still or `(frames, H, W, 3)` for any film, as an image.
 fn film_of(name: &str, r: &Bound<'_, PyAny>, h: &Header) -> PyResult<Image> {
     let (w, ht, f) = (h.width as usize, h.height as usize, h.frames as usize);
     let py = r.py();
@@ -309,16 +307,11 @@ fn aux_of(
         }
         return Ok(None);
     };
-    let aux = Aux {
+    pipeline::check_aux().map_err(|e| value_error(e.to_string()))?;
+    Ok(Some(Aux {
         albedo: film_of("albedo", albedo, h)?,
         normal: normal.map(|n| film_of("normal", n, h)).transpose()?,
-    };
-    if let Err(why) = oidn::library() {
-        return Err(value_error(format!(
-            "albedo is OIDN's input, and {why} (README, \"OIDN\")"
-        )));
-    }
-    Ok(Some(aux))
+    }))
 }
 
 /// An image as the `filter` command writes it to EXR (rounded to f32,
