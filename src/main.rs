@@ -250,7 +250,7 @@ enum Command {
         /// The reference EXR every configuration is measured against.
         #[arg(long)]
         reference: PathBuf,
-        /// Output folder for sweep.csv, sweep.json and the plots.
+        /// Output folder for sweep.csv, sweep.json, the plots and sweep.html.
         #[arg(short, long)]
         out: PathBuf,
         /// k values, comma-separated.

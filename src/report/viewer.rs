@@ -1,4 +1,4 @@
-//! The data of report.html's HDR viewer (`viewer.js`, inlined with
+//! The data of the HDR viewer of report.html and sweep.html (`viewer.js`, inlined with
 //! `viewer.css`): every image as half floats, frame by frame, and its
 //! LDR-ꟻLIP map against the reference, in one JSON object the page embeds
 //! in `<script type="application/json" id="viewer-data">`. The viewer
