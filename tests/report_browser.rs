@@ -95,8 +95,9 @@ fn viewer_check(browser: &Path, html: &str, dir: &Path) -> String {
     dom
 }
 
-fn check_report(browser: &Path, frames: u32) {
-    let dir = tempfile::tempdir().unwrap();
+/// A small synthetic dump with fireflies and a light in `dir` (d.pds), and
+/// its firefly-free reference (ref.exr); returns the dump's path.
+fn dump_and_reference(dir: &Path, frames: u32) -> PathBuf {
     let p = SynthParams {
         width: 40,
         height: 24,
@@ -106,7 +107,7 @@ fn check_report(browser: &Path, frames: u32) {
         light: Some((5, 5, 3, 20.0)),
         ..SynthParams::default()
     };
-    let dump = dir.path().join("d.pds");
+    let dump = dir.join("d.pds");
     p.write(&dump).unwrap();
     let dense = SynthParams {
         spp: 128,
@@ -114,7 +115,13 @@ fn check_report(browser: &Path, frames: u32) {
         seed: 99,
         ..p.clone()
     };
-    exr::write_image(dir.path(), "ref", &common::synth_mean(&dense)).unwrap();
+    exr::write_image(dir, "ref", &common::synth_mean(&dense)).unwrap();
+    dump
+}
+
+fn check_report(browser: &Path, frames: u32) {
+    let dir = tempfile::tempdir().unwrap();
+    let dump = dump_and_reference(dir.path(), frames);
     let out = dir.path().join("out");
     let mut o = FilterOptions::new(&dump, &out);
     o.reference = Some(dir.path().join("ref.exr"));
@@ -149,18 +156,8 @@ fn check_report(browser: &Path, frames: u32) {
     no_console_errors(&err);
     // Every method and the reference are in the viewer, the recommended
     // image first.
-    let data = html
-        .split("<script type=\"application/json\" id=\"viewer-data\">")
-        .nth(1)
-        .and_then(|s| s.split("</script>").next())
-        .expect("the viewer's data");
-    let data: serde_json::Value = serde_json::from_str(data).unwrap();
-    let names: Vec<&str> = data["images"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|i| i["name"].as_str().unwrap())
-        .collect();
+    let data = common::viewer_data(&html);
+    let names = common::viewer_names(&data);
     for name in [
         "reference",
         "mean",
@@ -263,23 +260,7 @@ fn sweep_html_shows_its_images_in_the_viewer() {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    let p = SynthParams {
-        width: 32,
-        height: 24,
-        spp: 8,
-        firefly_fraction: 0.02,
-        light: Some((5, 5, 3, 20.0)),
-        ..SynthParams::default()
-    };
-    let dump = dir.path().join("d.pds");
-    p.write(&dump).unwrap();
-    let dense = SynthParams {
-        spp: 128,
-        firefly_fraction: 0.0,
-        seed: 99,
-        ..p.clone()
-    };
-    exr::write_image(dir.path(), "ref", &common::synth_mean(&dense)).unwrap();
+    let dump = dump_and_reference(dir.path(), 1);
     let out = dir.path().join("sweep");
     let mut o = SweepOptions::new(&dump, dir.path().join("ref.exr"), &out);
     o.ks = vec![3, 8, 20];

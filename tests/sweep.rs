@@ -136,18 +136,8 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
     // sweep.html's viewer: the lowest-FLIP row first, named in full, then
     // the reference, the lowest-RMS row (when another) and the mean.
     let html = std::fs::read_to_string(out.join("sweep.html")).unwrap();
-    let data = html
-        .split("<script type=\"application/json\" id=\"viewer-data\">")
-        .nth(1)
-        .and_then(|s| s.split("</script>").next())
-        .expect("the viewer's data");
-    let data: serde_json::Value = serde_json::from_str(data).unwrap();
-    let names: Vec<&str> = data["images"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|i| i["name"].as_str().unwrap())
-        .collect();
+    let data = common::viewer_data(&html);
+    let names = common::viewer_names(&data);
     let lowest = |of: fn(&pathdensity::metrics::Metrics) -> f64| {
         let (i, r) = s
             .rows

@@ -218,3 +218,25 @@ pub fn python_with_numpy() -> bool {
 pub fn image(name: &str) -> pathdensity::method::ImageId {
     name.parse().unwrap()
 }
+
+/// The JSON an HTML page embeds for its HDR viewer.
+#[allow(dead_code)]
+pub fn viewer_data(html: &str) -> serde_json::Value {
+    let json = html
+        .split("<script type=\"application/json\" id=\"viewer-data\">")
+        .nth(1)
+        .and_then(|s| s.split("</script>").next())
+        .expect("the viewer's data");
+    serde_json::from_str(json).unwrap()
+}
+
+/// The names of the viewer's images, in its order.
+#[allow(dead_code)]
+pub fn viewer_names(data: &serde_json::Value) -> Vec<&str> {
+    data["images"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| i["name"].as_str().unwrap())
+        .collect()
+}
