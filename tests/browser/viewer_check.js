@@ -201,6 +201,64 @@
       press('f');
       if (Math.abs(v.state().zoom - z0) > 1e-9 * z0) throw new Error(`f gave zoom ${v.state().zoom}, fit is ${z0}`);
     });
+
+    if (ref === null) skipped.push('7 (no reference)');
+    else {
+      step('7 r flips to the reference and back', () => {
+        reset();
+        select(methods[0]);
+        const a = snap();
+        press('r');
+        if (!v.state().showReference) throw new Error('r did not show the reference');
+        const b = snap();
+        press('r');
+        if (v.state().showReference) throw new Error('a second r did not go back');
+        const c = snap();
+        if (!c.every((x, k) => x === a[k])) throw new Error('back from the reference, the canvas differs');
+        if (a.every((x, k) => x === b[k])) throw new Error('the reference draws as the method');
+        if (ref < 9) {
+          select(ref);
+          const d = snap();
+          if (!d.every((x, k) => x === b[k])) throw new Error('r and selecting the reference draw differently');
+        }
+      });
+    }
+
+    step('8 pointer readout', () => {
+      reset();
+      const i = methods[0];
+      select(i);
+      const canvas = v.canvases().left, r = canvas.getBoundingClientRect();
+      const x = W >> 1, y = H >> 1, c = drawnAt(x, y);
+      if (!c) throw new Error(`pixel ${x},${y} is not drawn`);
+      const client = (d) => [r.left + ((d[0] + 0.5) * r.width) / cw, r.top + ((d[1] + 0.5) * r.height) / ch];
+      const [cx, cy] = client(c);
+      const ev = (type, px, py) => canvas.dispatchEvent(new PointerEvent(type, { clientX: px, clientY: py, bubbles: true, pointerId: 1 }));
+      ev('pointermove', cx, cy);
+      const text = document.querySelector('.pdv-readout').textContent;
+      const want = v.linear(i, 0, x, y).map((u) => u.toPrecision(4)).join('  ');
+      if (!text.includes(`x ${x}, y ${y}`) || !text.includes(want)) throw new Error(`readout '${text}' lacks pixel ${x},${y} = ${want}`);
+      if (ref !== null) {
+        const wantRef = v.linear(ref, 0, x, y).map((u) => u.toPrecision(4)).join('  ');
+        if (!text.includes(`reference: ${wantRef}`)) throw new Error(`readout '${text}' lacks the reference's ${wantRef}`);
+      }
+    });
+
+    step('9 the exposure slider is the e key', () => {
+      reset();
+      select(methods[0]);
+      press('e');
+      const byKey = snap();
+      press('0');
+      const slider = [...document.querySelectorAll('input[type=range]')].find((el) => el.max > 1 && el.min < 0);
+      if (!slider) throw new Error('no exposure slider');
+      slider.value = 1;
+      slider.dispatchEvent(new Event('input', { bubbles: true }));
+      if (v.state().stops !== 1) throw new Error(`the slider at 1 gave ${v.state().stops} stops`);
+      const bySlider = snap();
+      if (!bySlider.every((x, k) => x === byKey[k])) throw new Error('the slider at +1 draws differently from e');
+      press('0');
+    });
   }
 
   function step(name, fn) {
