@@ -474,6 +474,9 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             o.html = !no_html;
             let report = filter::filter_with_progress(&o, &Bar::new("filter"))?;
             print!("{}", report.summary());
+            if o.html {
+                println!("report: {}", o.out_dir.join("report.html").display());
+            }
         }
         Command::Batch {
             dumps,

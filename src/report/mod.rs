@@ -164,22 +164,34 @@ impl FilterReport {
             self.threads
         );
         let best = self.best_rms();
+        let rows: Vec<_> = self
+            .method_rows()
+            .into_iter()
+            .map(|(id, seconds, m)| {
+                let name = if self.recommended == Some(id) {
+                    format!("{id} (use)")
+                } else {
+                    id.to_string()
+                };
+                (id, name, seconds, m)
+            })
+            .collect();
+        // The name column as wide as its longest entry.
+        let w = rows
+            .iter()
+            .map(|r| r.1.chars().count() + 1)
+            .fold(20, usize::max);
         s += &format!(
-            "  {:<20}{:>12}{:>14}{:>12}{:>10}{:>9}{:>10}{:>10}\n",
+            "  {:<w$}{:>12}{:>14}{:>12}{:>10}{:>9}{:>10}{:>10}\n",
             "image", "RMS", "RMS display", "relMSE", "energy", "FLIP", "HDR-FLIP", "seconds"
         );
-        for (name, seconds, m) in self.method_rows() {
-            let mark = if best == Some(name) { "*" } else { " " };
-            let name = if self.recommended == Some(name) {
-                format!("{name} (use)")
-            } else {
-                name.to_string()
-            };
+        for (id, name, seconds, m) in rows {
+            let mark = if best == Some(id) { "*" } else { " " };
             match m {
                 Some(m) => {
                     let m = &m.pooled;
                     s += &format!(
-                        "{mark} {:<20}{:>12.6}{:>14.6}{:>12.6}{:>10.4}{:>9.4}{:>10.4}{:>10.3}\n",
+                        "{mark} {:<w$}{:>12.6}{:>14.6}{:>12.6}{:>10.4}{:>9.4}{:>10.4}{:>10.3}\n",
                         name,
                         m.rms,
                         m.rms_display,
@@ -190,7 +202,7 @@ impl FilterReport {
                         seconds
                     );
                 }
-                None => s += &format!("  {:<20}{:>77.3}\n", name, seconds),
+                None => s += &format!("  {:<w$}{:>77.3}\n", name, seconds),
             }
         }
         if best.is_some() {

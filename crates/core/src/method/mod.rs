@@ -194,9 +194,10 @@ pub struct Row {
     /// Made unless `--methods` says otherwise (a method that needs OIDN
     /// only where OIDN is found: [`super::MethodSet::default_here`]).
     pub default: bool,
-    /// Its rank as the image a user should use, 0 first: the first of the
-    /// ranked images a run made is its `recommended` image. Chosen by
-    /// measurement (docs/RESULTS.md, "Which image to use").
+    /// Its rank as the image a user should use, 0 first, no two alike:
+    /// the first of the ranked images a run made is its `recommended`
+    /// image (README, "Which image to use"; measured in docs/RESULTS.md,
+    /// "The guided image").
     pub recommend: Option<u8>,
 }
 
@@ -219,7 +220,7 @@ pub const TABLE: &[Row] = &[
         pieces: &[],
         role: Role::Grid,
         default: true,
-        recommend: Some(3),
+        recommend: Some(5),
     },
     Row {
         method: Method::Median,
@@ -303,7 +304,7 @@ pub const TABLE: &[Row] = &[
         pieces: &[Piece::FilteredEnergy],
         role: Role::Grid,
         default: true,
-        recommend: Some(2),
+        recommend: Some(4),
     },
     Row {
         method: Method::Clamp,
@@ -479,5 +480,20 @@ impl<'de> serde::Deserialize<'de> for Method {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Method, D::Error> {
         let name = String::deserialize(d)?;
         name.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A tie would leave the recommended image to the enum's order.
+    #[test]
+    fn no_two_methods_share_a_recommend_rank() {
+        let mut ranks: Vec<u8> = TABLE.iter().filter_map(|r| r.recommend).collect();
+        let n = ranks.len();
+        ranks.sort_unstable();
+        ranks.dedup();
+        assert_eq!(ranks.len(), n, "{ranks:?}");
     }
 }
