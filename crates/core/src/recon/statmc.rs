@@ -47,8 +47,7 @@ const LAMBDA: f64 = 0.5;
 const ALPHA: f64 = 0.05;
 /// Two pixels average each other only when neither's s²/n exceeds this
 /// many times the other's (or the other's neighbourhood median): standard
-/// errors within 4×. 8 and 32 measured alike (docs/RESULTS.md, "The
-/// guided image").
+/// errors within 4× (docs/RESULTS.md, "The guided image").
 pub const NOISIER: f64 = 16.0;
 
 /// One pixel's statistics.
