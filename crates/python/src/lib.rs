@@ -1,119 +1,31 @@
 //! The Python module `pathdensity`: the filter on numpy arrays.
 //!
-//! A thin layer: it converts arrays, keyword arguments and errors, and
-//! calls `pathdensity_core::pipeline::run` and the format crate's dump
-//! reader and writer. No filter logic lives here, so the module's
+//! A thin layer: it converts arrays (`arrays`), keyword arguments
+//! (`keywords`) and errors (`errors`), and calls
+//! `pathdensity_core::pipeline::run` and the format crate's dump reader
+//! and writer. No filter logic lives here, so the module's
 //! decisions and images are the `filter` command's, byte for byte
 //! (`tests/test_pathdensity.py` holds it to that).
 
 use std::path::PathBuf;
 
 use numpy::ndarray::ArrayView2;
-use numpy::{
-    PyArray1, PyArray2, PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyUntypedArray,
-    PyUntypedArrayMethods,
-};
-use pyo3::exceptions::{
-    PyFileNotFoundError, PyMemoryError, PyOSError, PyPermissionError, PyRuntimeError, PyValueError,
-};
+use numpy::{PyArray1, PyArray2, PyUntypedArray};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyString};
+use pyo3::types::PyDict;
 
-use pathdensity_core::config::FilterConfig;
 use pathdensity_core::density::ExactSigma;
-use pathdensity_core::imagespace::oidn::Aux;
-use pathdensity_core::method::MethodSet;
-use pathdensity_core::pipeline::{self, PipelineError, RunOptions};
+use pathdensity_core::pipeline::{self, RunOptions};
 use pathdensity_core::progress::Silent;
-use pathdensity_format::dump::{DumpReader, DumpWriter, Header, Order, Record};
-use pathdensity_format::image::{Image, stored};
+use pathdensity_format::dump::{DumpReader, DumpWriter, Header, Order};
 
-/// The one-line message of a format error (it names the file) as the
-/// matching `OSError`.
-fn os_error(e: pathdensity_format::Error) -> PyErr {
-    let message = e.to_string();
-    match &e {
-        pathdensity_format::Error::Io { error, .. } => match error.kind() {
-            std::io::ErrorKind::NotFound => PyFileNotFoundError::new_err(message),
-            std::io::ErrorKind::PermissionDenied => PyPermissionError::new_err(message),
-            _ => PyOSError::new_err(message),
-        },
-        pathdensity_format::Error::Format { .. } => PyOSError::new_err(message),
-    }
-}
+mod arrays;
+mod errors;
+mod keywords;
 
-/// A pipeline refusal as Python's exception for it; the message is the
-/// command line's (a configuration field is named as the keyword).
-fn pipeline_error(e: PipelineError) -> PyErr {
-    let message = e.to_string();
-    match e {
-        PipelineError::Config(_) | PipelineError::NoValidSample | PipelineError::NoWhite => {
-            PyValueError::new_err(message)
-        }
-        PipelineError::Memory { .. } => PyMemoryError::new_err(message),
-        PipelineError::Threads(_) | PipelineError::Method { .. } => {
-            PyRuntimeError::new_err(message)
-        }
-    }
-}
-
-fn value_error(message: impl Into<String>) -> PyErr {
-    PyValueError::new_err(message.into())
-}
-
-/// A shape as Python prints it: `(8, 7, 3)`, `(5,)`.
-fn shape_str(shape: &[usize]) -> String {
-    let items: Vec<String> = shape.iter().map(|n| n.to_string()).collect();
-    match items.as_slice() {
-        [one] => format!("({one},)"),
-        _ => format!("({})", items.join(", ")),
-    }
-}
-
-/// The records of `array` without a copy: a C-contiguous, aligned
-/// `(N, 6)` float32 array (x, y, t, r, g, b, docs/format.md).
-fn records_of<'a>(array: &'a Bound<'_, PyAny>) -> PyResult<numpy::PyReadonlyArray2<'a, f32>> {
-    let py = array.py();
-    let Ok(untyped) = array.cast::<PyUntypedArray>() else {
-        let kind = array.get_type().name()?;
-        return Err(value_error(format!(
-            "records must be a numpy array of shape (N, 6) and dtype float32, got a {kind}"
-        )));
-    };
-    let dtype = untyped.dtype();
-    if !dtype.is_equiv_to(&numpy::dtype::<f32>(py)) {
-        return Err(value_error(format!(
-            "records must have dtype float32 (x, y, t, r, g, b as 24-byte records), got {} (convert with records.astype(numpy.float32))",
-            dtype.str()?
-        )));
-    }
-    let shape = untyped.shape();
-    if shape.len() != 2 || shape[1] != 6 {
-        return Err(value_error(format!(
-            "records must have shape (N, 6) (x, y, t, r, g, b), got {}",
-            shape_str(shape)
-        )));
-    }
-    if !untyped.is_c_contiguous() {
-        return Err(value_error(
-            "records must be C-contiguous (row after row, as a dump holds them); the filter reads them in place and copies nothing: pass numpy.ascontiguousarray(records)",
-        ));
-    }
-    let typed = untyped.cast::<PyArray2<f32>>()?;
-    let readonly = typed
-        .try_readonly()
-        .map_err(|e| value_error(e.to_string()))?;
-    // Checked here once, so that `as_records` cannot fail.
-    bytemuck::try_cast_slice::<f32, Record>(readonly.as_slice()?).map_err(|_| {
-        value_error("records must be aligned to 4 bytes (numpy.ascontiguousarray(records))")
-    })?;
-    Ok(readonly)
-}
-
-fn as_records<'a>(array: &'a numpy::PyReadonlyArray2<'_, f32>) -> &'a [Record] {
-    let floats = array.as_slice().expect("checked C-contiguous");
-    bytemuck::cast_slice(floats)
-}
+use arrays::{as_records, aux_of, image_array, records_of, reference_of};
+use errors::{os_error, pipeline_error, value_error};
+use keywords::config_of;
 
 /// `order` by name: `unspecified`, `pixel` or `pass` (also `pixel-major`,
 /// `pass-major`, as the dump's header spells them).
@@ -150,177 +62,6 @@ fn header_of(
     h.sample_count = count as u64;
     h.validate().map_err(value_error)?;
     Ok(h)
-}
-
-/// A Python value as JSON, for the configuration's serde form.
-fn to_json(v: &Bound<'_, PyAny>) -> PyResult<serde_json::Value> {
-    use serde_json::Value;
-    if v.is_none() {
-        return Ok(Value::Null);
-    }
-    if let Ok(b) = v.cast::<pyo3::types::PyBool>() {
-        return Ok(Value::Bool(b.is_true()));
-    }
-    if let Ok(s) = v.cast::<PyString>() {
-        return Ok(Value::String(s.to_str()?.to_owned()));
-    }
-    if v.hasattr("__index__")? {
-        if let Ok(i) = v.extract::<i64>() {
-            return Ok(i.into());
-        }
-        if let Ok(u) = v.extract::<u64>() {
-            return Ok(u.into());
-        }
-    }
-    if let Ok(f) = v.extract::<f64>() {
-        return Ok(serde_json::Number::from_f64(f).map_or(
-            // Not JSON: the field check below refuses it with the value.
-            Value::String(f.to_string()),
-            Value::Number,
-        ));
-    }
-    if let Ok(items) = v.try_iter() {
-        return items.map(|i| to_json(&i?)).collect();
-    }
-    Err(value_error(format!(
-        "cannot take {} as an option value",
-        v.repr()?
-    )))
-}
-
-/// The configuration of `options` (FilterConfig's fields, names as in
-/// report.json's "config"; `methods` a list of names or a comma string),
-/// every other field as the command line defaults it.
-fn config_of(options: Option<&Bound<'_, PyDict>>) -> PyResult<FilterConfig> {
-    let defaults = FilterConfig {
-        methods: MethodSet::default_here(),
-        ..FilterConfig::DEFAULT
-    };
-    let serde_json::Value::Object(mut fields) =
-        serde_json::to_value(defaults).expect("the configuration serialises")
-    else {
-        unreachable!("a struct serialises to an object")
-    };
-    let Some(options) = options else {
-        return Ok(defaults);
-    };
-    for (key, value) in options.iter() {
-        let name: String = key.extract()?;
-        if !fields.contains_key(&name) {
-            let known: Vec<&str> = fields.keys().map(String::as_str).collect();
-            return Err(PyTypeError::new_err(format!(
-                "filter() got an unexpected keyword argument {name:?} (the configuration's fields are {})",
-                known.join(", ")
-            )));
-        }
-        let mut json = to_json(&value)?;
-        if name == "methods"
-            && let serde_json::Value::String(s) = &json
-        {
-            json = s
-                .split(',')
-                .map(|m| serde_json::Value::String(m.trim().to_owned()))
-                .filter(|m| m.as_str() != Some(""))
-                .collect();
-        }
-        // This field alone, so that the message names it.
-        let one = serde_json::json!({ &name: json });
-        if let Err(e) = serde_json::from_value::<FilterConfig>(one) {
-            return Err(value_error(format!(
-                "invalid value {} for {name}: {e}",
-                value.repr()?
-            )));
-        }
-        fields.insert(name, json);
-    }
-    serde_json::from_value(serde_json::Value::Object(fields))
-        .map_err(|e| value_error(e.to_string()))
-}
-
-use pyo3::exceptions::PyTypeError;
-
-/// A reference image as the pipeline takes it ([`film_of`]), finite.
-fn reference_of(r: &Bound<'_, PyAny>, h: &Header) -> PyResult<Image> {
-    let img = film_of("reference", r, h)?;
-    if img.data.iter().flatten().any(|v| !v.is_finite()) {
-        return Err(value_error("reference holds non-finite values"));
-    }
-    Ok(img)
-}
-
-/// `name`'s float32 or float64 array of the film's shape, `(H, W, 3)` for
-/// a still or `(frames, H, W, 3)` for any film, as an image.
-fn film_of(name: &str, r: &Bound<'_, PyAny>, h: &Header) -> PyResult<Image> {
-    let (w, ht, f) = (h.width as usize, h.height as usize, h.frames as usize);
-    let py = r.py();
-    let np = py.import("numpy")?;
-    // float32 and float64 as float64 (the CLI reads an EXR's f32 into f64);
-    // a copy, as the reference is small beside the records.
-    let array = np.call_method1("asarray", (r, "float64"))?;
-    let array = array
-        .cast::<PyArrayDyn<f64>>()
-        .map_err(|_| value_error(format!("{name} must be a float array")))?;
-    let shape = array.shape().to_vec();
-    let ok = match shape.as_slice() {
-        [hh, ww, 3] => f == 1 && (*hh, *ww) == (ht, w),
-        [ff, hh, ww, 3] => (*ff, *hh, *ww) == (f, ht, w),
-        _ => false,
-    };
-    if !ok {
-        return Err(value_error(format!(
-            "{name} has shape {}, the film is {f} frames of {w} × {ht} (expected ({f}, {ht}, {w}, 3){})",
-            shape_str(&shape),
-            if f == 1 {
-                format!(" or ({ht}, {w}, 3)")
-            } else {
-                String::new()
-            }
-        )));
-    }
-    let ro = array.readonly();
-    let view = ro.as_array();
-    let mut img = Image::new(w, ht, f);
-    for (p, px) in view
-        .as_standard_layout()
-        .as_slice()
-        .expect("standard layout")
-        .chunks_exact(3)
-        .zip(img.data.iter_mut())
-    {
-        *px = [p[0], p[1], p[2]];
-    }
-    Ok(img)
-}
-
-/// OIDN's auxiliary images from `albedo=` and `normal=`, refused as the
-/// command refuses `--albedo` and `--normal`.
-fn aux_of(
-    albedo: Option<&Bound<'_, PyAny>>,
-    normal: Option<&Bound<'_, PyAny>>,
-    h: &Header,
-) -> PyResult<Option<Aux>> {
-    let Some(albedo) = albedo else {
-        if normal.is_some() {
-            return Err(value_error(
-                "normal needs albedo (OIDN takes a normal only with an albedo)",
-            ));
-        }
-        return Ok(None);
-    };
-    pipeline::check_aux().map_err(|e| value_error(e.to_string()))?;
-    Ok(Some(Aux {
-        albedo: film_of("albedo", albedo, h)?,
-        normal: normal.map(|n| film_of("normal", n, h)).transpose()?,
-    }))
-}
-
-/// An image as the `filter` command writes it to EXR (rounded to f32,
-/// clamped to the finite range), shape `(frames, H, W, 3)`.
-fn image_array<'py>(py: Python<'py>, img: &Image) -> PyResult<Bound<'py, PyAny>> {
-    let values: Vec<f32> = img.data.iter().flatten().map(|&v| stored(v)).collect();
-    Ok(PyArray1::from_vec(py, values)
-        .reshape([img.frames, img.height, img.width, 3])?
-        .into_any())
 }
 
 /// `json.loads` of `value`'s serde form: the dicts of report.json.
