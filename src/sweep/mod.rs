@@ -314,28 +314,20 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
     let configs = grid(o);
     progress.set_length(configs.len() as u64);
     let mut whites: Vec<(White, Result<f64, String>)> = Vec::new();
-    let mut white_of = |white: &White| match whites.iter().find(|e| e.0 == *white) {
-        Some(e) => e.1.clone(),
-        None => {
-            let v = pipeline::resolve_white(
-                &FilterConfig {
-                    white: *white,
-                    ..o.config
-                },
-                records,
-                &h,
-            )
-            .map_err(|e| e.to_string());
-            whites.push((*white, v.clone()));
-            v
-        }
-    };
     let mut rows = Vec::new();
     for config in &configs {
-        let row = match white_of(&config.white) {
-            Ok(white) => pool.install(|| {
-                configuration(records, &h, config, white, &reference, valid, &mut None)
-            }),
+        let white_value = match whites.iter().find(|e| e.0 == config.white) {
+            Some(e) => e.1.clone(),
+            None => {
+                let v = pipeline::resolve_white(config, records, &h).map_err(|e| e.to_string());
+                whites.push((config.white, v.clone()));
+                v
+            }
+        };
+        let row = match white_value {
+            Ok(white) => {
+                pool.install(|| configuration(records, &h, config, white, &reference, valid).0)
+            }
             Err(failure) => Row {
                 failure: Some(failure),
                 ..Row::unrun(config, f64::NAN)
@@ -347,20 +339,9 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
     // The page's images: the one or two winning rows run again (the same
     // bytes), rather than every row's image held while the grid runs.
     let image_of = |i: usize| {
-        let mut image = None;
         let white = rows[i].white_value;
-        pool.install(|| {
-            configuration(
-                records,
-                &h,
-                &configs[i],
-                white,
-                &reference,
-                valid,
-                &mut image,
-            )
-        });
-        image.map(|img| (i, img))
+        pool.install(|| configuration(records, &h, &configs[i], white, &reference, valid).1)
+            .map(|img| (i, img))
     };
     let flip_row = lowest(&rows, |m| m.flip);
     let rms_row = lowest(&rows, |m| m.rms).filter(|&i| Some(i) != flip_row);
@@ -386,9 +367,8 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
     })
 }
 
-/// Runs one configuration, and when `image` is asked for, gives its
-/// filtered image there; a configuration that cannot run is a row with its
-/// reason.
+/// Runs one configuration: its row and its filtered image; a
+/// configuration that cannot run is a row with its reason and no image.
 fn configuration(
     records: &[Record],
     h: &Header,
@@ -396,8 +376,7 @@ fn configuration(
     white_value: f64,
     reference: &Image,
     valid: u64,
-    image: &mut Option<Image>,
-) -> Row {
+) -> (Row, Option<Image>) {
     let mut row = Row::unrun(config, white_value);
     // The dump's valid samples were counted once for the whole sweep.
     // k first: a k the dump cannot serve is what a sweep's reader needs
@@ -412,7 +391,7 @@ fn configuration(
         .and_then(|()| pipeline::check_counted(config, h, valid));
     if let Err(e) = refused {
         row.failure = Some(e.to_string());
-        return row;
+        return (row, None);
     }
     let t = Instant::now();
     let result = pipeline::replay(
@@ -445,8 +424,7 @@ fn configuration(
         config.energy_sigma,
     );
     row.energy_metrics = Some(metrics::compare(&energy_aware, reference, config.exposure).pooled);
-    *image = Some(core.reconstruction.filtered);
-    row
+    (row, Some(core.reconstruction.filtered))
 }
 
 impl Row {
