@@ -36,11 +36,6 @@ pub struct Info {
     pub channels: Option<[ChannelStats; 3]>,
 }
 
-fn valid_records<'a>(recs: &'a [Record], h: &'a Header) -> impl Iterator<Item = &'a Record> + 'a {
-    recs.iter()
-        .filter(move |r| r.validity(h) == Validity::Valid)
-}
-
 pub fn info(path: &Path) -> Result<Info> {
     let dump = DumpReader::open(path)?;
     let h = dump.header().clone();
@@ -61,7 +56,8 @@ pub fn info(path: &Path) -> Result<Info> {
             .collect()
     };
     let channel = |c: usize| {
-        let v = exact(|| valid_records(recs, &h).map(move |r| r.rgb()[c]), ranks)?;
+        let value = |r: &Record| (r.validity(&h) == Validity::Valid).then(|| r.rgb()[c]);
+        let v = exact(recs, value, ranks)?;
         Some(ChannelStats {
             min: v[0],
             p50: v[1],

@@ -1,4 +1,4 @@
-//! Exact nearest-rank quantiles of f32 values in two streaming passes with
+//! Exact nearest-rank quantiles of f32 values in two parallel passes with
 //! fixed-size histograms (the high 16 bits of an order-preserving key, then
 //! the low 16 bits inside the bins that hold the wanted ranks), so dumps
 //! larger than memory work.
@@ -27,26 +27,37 @@ pub fn rank(q: f64, n: u64) -> u64 {
     ((q * n as f64).ceil() as u64).clamp(1, n) - 1
 }
 
-/// The values at the 0-based `ranks` of the sorted sequence that `values()`
-/// yields (called twice; it must yield the same non-NaN values each time).
-/// None when the sequence is empty.
+/// Items a histogram pass takes at a time: each chunk counts into its own
+/// histograms, which are then added, so the counts (and the quantiles)
+/// are the same for any thread count.
+const CHUNK: usize = 1 << 20;
+
+/// The values at the 0-based `ranks` of the sorted sequence of the values
+/// `value` gives the `items` (`None` skips an item; no NaN), in two
+/// passes over the items, each in parallel. None when there is no value.
 ///
 /// ```
 /// use pathdensity_core::quantile::{exact, rank};
 /// let v = [5.0f32, -1.0, 3.0, 3.0, 100.0];
-/// let got = exact(|| v.iter().copied(), |n| vec![0, rank(0.5, n), n - 1]);
+/// let got = exact(&v, |&x| Some(x), |n| vec![0, rank(0.5, n), n - 1]);
 /// assert_eq!(got, Some(vec![-1.0, 3.0, 100.0]));
 /// ```
-pub fn exact<I: Iterator<Item = f32>>(
-    values: impl Fn() -> I,
+pub fn exact<T: Sync>(
+    items: &[T],
+    value: impl Fn(&T) -> Option<f32> + Sync,
     ranks: impl FnOnce(u64) -> Vec<u64>,
 ) -> Option<Vec<f32>> {
-    let mut hi = vec![0u64; 1 << 16];
-    let mut n = 0u64;
-    for v in values() {
-        hi[(key(v) >> 16) as usize] += 1;
-        n += 1;
-    }
+    let hi = histograms(
+        items,
+        |chunk, h: &mut [Vec<u64>]| {
+            for k in chunk.iter().filter_map(&value).map(key) {
+                h[0][(k >> 16) as usize] += 1;
+            }
+        },
+        1,
+    )
+    .pop()?;
+    let n: u64 = hi.iter().sum();
     if n == 0 {
         return None;
     }
@@ -64,15 +75,19 @@ pub fn exact<I: Iterator<Item = f32>>(
             unreachable!("rank {rk} not below the count {n}")
         })
         .collect();
-    let mut lo = vec![vec![0u64; 1 << 16]; targets.len()];
-    for v in values() {
-        let k = key(v);
-        for (t, &(bin, _)) in targets.iter().enumerate() {
-            if k >> 16 == bin {
-                lo[t][(k & 0xffff) as usize] += 1;
+    let lo = histograms(
+        items,
+        |chunk, h: &mut [Vec<u64>]| {
+            for k in chunk.iter().filter_map(&value).map(key) {
+                for (t, &(bin, _)) in targets.iter().enumerate() {
+                    if k >> 16 == bin {
+                        h[t][(k & 0xffff) as usize] += 1;
+                    }
+                }
             }
-        }
-    }
+        },
+        targets.len(),
+    );
     Some(
         targets
             .iter()
@@ -88,6 +103,34 @@ pub fn exact<I: Iterator<Item = f32>>(
             })
             .collect(),
     )
+}
+
+/// `count` histograms of 2¹⁶ bins over `items`: `fill` counts one chunk
+/// into its own set, and the sets are added.
+fn histograms<T: Sync>(
+    items: &[T],
+    fill: impl Fn(&[T], &mut [Vec<u64>]) + Sync,
+    count: usize,
+) -> Vec<Vec<u64>> {
+    use crate::par::prelude::*;
+    let empty = || vec![vec![0u64; 1 << 16]; count];
+    let sets: Vec<Vec<Vec<u64>>> = items
+        .par_chunks(CHUNK)
+        .map(|chunk| {
+            let mut h = empty();
+            fill(chunk, &mut h);
+            h
+        })
+        .collect();
+    let mut total = empty();
+    for set in sets {
+        for (t, h) in total.iter_mut().zip(set) {
+            for (a, b) in t.iter_mut().zip(h) {
+                *a += b;
+            }
+        }
+    }
+    total
 }
 
 #[cfg(test)]
@@ -121,9 +164,9 @@ mod tests {
         let mut s = v.clone();
         s.sort_by(f32::total_cmp);
         for q in [0.0, 0.01, 0.5, 0.99, 0.999, 1.0] {
-            let got = exact(|| v.iter().copied(), |n| vec![rank(q, n)]).unwrap();
+            let got = exact(&v, |&x| Some(x), |n| vec![rank(q, n)]).unwrap();
             assert_eq!(got[0], s[rank(q, 10_000) as usize], "q {q}");
         }
-        assert_eq!(exact(std::iter::empty, |_| vec![0]), None);
+        assert_eq!(exact(&[] as &[f32], |&x| Some(x), |_| vec![0]), None);
     }
 }

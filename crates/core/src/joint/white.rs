@@ -74,14 +74,11 @@ impl<'de> serde::Deserialize<'de> for White {
 /// The median luminance of the valid samples with Y > 0, over MID_GREY
 /// (docs/filter.md F3).
 pub fn auto_white(records: &[Record], h: &Header) -> Option<f64> {
-    let lum = || {
-        records
-            .iter()
-            .filter(|r| r.validity(h) == Validity::Valid)
-            .map(|r| luminance([r.r as f64, r.g as f64, r.b as f64]) as f32)
-            .filter(|&y| y > 0.0 && y.is_finite())
+    let lum = |r: &Record| {
+        let y = luminance([r.r as f64, r.g as f64, r.b as f64]) as f32;
+        (r.validity(h) == Validity::Valid && y > 0.0 && y.is_finite()).then_some(y)
     };
-    let median = exact(lum, |n| vec![rank(0.5, n)])?[0] as f64;
+    let median = exact(records, lum, |n| vec![rank(0.5, n)])?[0] as f64;
     let w = median / MID_GREY;
     (w > 0.0 && w.is_finite()).then_some(w)
 }

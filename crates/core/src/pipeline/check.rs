@@ -6,6 +6,7 @@ use super::PipelineError;
 use crate::config::{ConfigError, FilterConfig, White};
 use crate::dump::{Header, Record, Validity};
 use crate::joint::white::auto_white;
+use crate::par::prelude::*;
 
 /// The white luminance `config` asks for on these records. `auto` needs
 /// a valid sample of positive luminance.
@@ -42,9 +43,13 @@ pub fn check(
 ) -> Result<u64, PipelineError> {
     config.validate()?;
     let valid = records
-        .iter()
-        .filter(|r| r.validity(header) == Validity::Valid)
-        .count() as u64;
+        .par_chunks(1 << 20)
+        .map(|c| {
+            c.iter()
+                .filter(|r| r.validity(header) == Validity::Valid)
+                .count() as u64
+        })
+        .sum();
     check_counted(config, header, valid)?;
     Ok(valid)
 }
