@@ -250,7 +250,7 @@ pub fn reconstruct(
     records: &[Record],
     header: &Header,
     config: &FilterConfig,
-    accepted: impl Fn(usize) -> bool,
+    accepted: impl Fn(usize) -> bool + Sync,
     replay_seconds: f64,
 ) -> Core {
     let t = Instant::now();

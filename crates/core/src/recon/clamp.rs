@@ -6,7 +6,7 @@
 //! genuine feature is brighter than C), and blind to where a sample is.
 
 use super::{Film, Image, ReconFilter};
-use crate::dump::{Header, Record, Validity};
+use crate::dump::{Header, Record};
 
 /// `rgb` with its largest component at most `c` (pbrt-v4's rule: scale
 /// all three by c / max). Negative components do not count towards the
@@ -31,14 +31,9 @@ pub fn clamped_mean(
     c: f64,
     occupancy: &[u32],
 ) -> Image {
-    let mut film = Film::new(h, filter);
-    for r in records {
-        if r.validity(h) != Validity::Valid {
-            continue;
-        }
-        let rgb = clamp_rgb([r.r as f64, r.g as f64, r.b as f64], c);
-        film.splat_rgb(r, rgb);
-    }
+    let film = Film::of_records(h, filter, records, |_, r| {
+        Some(clamp_rgb([r.r as f64, r.g as f64, r.b as f64], c))
+    });
     film.resolve(occupancy)
 }
 

@@ -62,38 +62,56 @@ impl Film {
     /// Splats colour `c` at a valid record's position.
     #[inline]
     pub fn splat_rgb(&mut self, r: &Record, c: [f64; 3]) {
-        let frame_base = r.t as usize * self.width * self.height;
-        match self.filter {
-            ReconFilter::Box => {
-                let px = frame_base + r.y as usize * self.width + r.x as usize;
-                add(&mut self.sum[px], c, 1.0);
-            }
-            ReconFilter::Gaussian { s, radius } => {
-                let (x, y) = (r.x as f64, r.y as f64);
-                // Pixel centres i + 0.5 within radius of x.
-                let span = |v: f64, n: usize| {
-                    let lo = (v - radius - 0.5).ceil().max(0.0) as usize;
-                    let hi = (v + radius - 0.5).floor().min(n as f64 - 1.0);
-                    (lo, hi)
-                };
-                let (i0, i1) = span(x, self.width);
-                let (j0, j1) = span(y, self.height);
-                if i1 < 0.0 || j1 < 0.0 {
-                    return;
-                }
-                for j in j0..=j1 as usize {
-                    let dy = j as f64 + 0.5 - y;
-                    for i in i0..=i1 as usize {
-                        let dx = i as f64 + 0.5 - x;
-                        let d2 = dx * dx + dy * dy;
-                        if d2 <= radius * radius {
-                            let w = (-d2 / (2.0 * s * s)).exp();
-                            add(&mut self.sum[frame_base + j * self.width + i], c, w);
-                        }
+        let sum = &mut self.sum;
+        footprint(self.filter, self.width, self.height, r, |px, w| {
+            add(&mut sum[px], c, w)
+        });
+    }
+
+    /// The film of every record `colour(i, r)` gives a colour to; `colour`
+    /// is called for valid records only, in file order. The film's rows are
+    /// split into one band a thread, and each band scans every record for
+    /// the samples that reach its rows: each pixel still sums its samples
+    /// in file order, so the bytes do not depend on the thread count.
+    pub fn of_records(
+        h: &Header,
+        filter: ReconFilter,
+        records: &[Record],
+        colour: impl Fn(usize, &Record) -> Option<[f64; 3]> + Sync,
+    ) -> Film {
+        use crate::par::prelude::*;
+        let mut film = Film::new(h, filter);
+        let (width, height) = (film.width, film.height);
+        let rows = film.sum.len() / width.max(1);
+        let band_rows = rows.div_ceil(crate::par::current_num_threads()).max(1);
+        // How far from its own row a sample reaches.
+        let reach = match filter {
+            ReconFilter::Box => 1.0,
+            ReconFilter::Gaussian { radius, .. } => radius + 1.0,
+        };
+        film.sum
+            .par_chunks_mut(band_rows * width.max(1))
+            .enumerate()
+            .for_each(|(band, sum)| {
+                let first = band * band_rows;
+                let base = first * width;
+                let (lo, hi) = (first as f64, (first + sum.len() / width) as f64);
+                for (i, r) in records.iter().enumerate() {
+                    // A cheap test before the validity check (its frame, then its row);
+                    // a NaN passes it, and the check rejects it.
+                    let row = (r.t as f64).floor() * height as f64 + r.y as f64;
+                    if row + reach < lo || row - reach >= hi || r.validity(h) != Validity::Valid {
+                        continue;
                     }
+                    let Some(c) = colour(i, r) else { continue };
+                    footprint(filter, width, height, r, |px, w| {
+                        if let Some(acc) = px.checked_sub(base).and_then(|p| sum.get_mut(p)) {
+                            add(acc, c, w);
+                        }
+                    });
                 }
-            }
-        }
+            });
+        film
     }
 
     /// Σ w of one pixel.
@@ -112,6 +130,46 @@ impl Film {
             }
         }
         img
+    }
+}
+
+/// Calls `f(pixel, weight)` for every pixel a valid record weighs on under
+/// `filter`.
+#[inline]
+fn footprint(
+    filter: ReconFilter,
+    width: usize,
+    height: usize,
+    r: &Record,
+    mut f: impl FnMut(usize, f64),
+) {
+    let frame_base = r.t as usize * width * height;
+    match filter {
+        ReconFilter::Box => f(frame_base + r.y as usize * width + r.x as usize, 1.0),
+        ReconFilter::Gaussian { s, radius } => {
+            let (x, y) = (r.x as f64, r.y as f64);
+            // Pixel centres i + 0.5 within radius of x.
+            let span = |v: f64, n: usize| {
+                let lo = (v - radius - 0.5).ceil().max(0.0) as usize;
+                let hi = (v + radius - 0.5).floor().min(n as f64 - 1.0);
+                (lo, hi)
+            };
+            let (i0, i1) = span(x, width);
+            let (j0, j1) = span(y, height);
+            if i1 < 0.0 || j1 < 0.0 {
+                return;
+            }
+            for j in j0..=j1 as usize {
+                let dy = j as f64 + 0.5 - y;
+                for i in i0..=i1 as usize {
+                    let dx = i as f64 + 0.5 - x;
+                    let d2 = dx * dx + dy * dy;
+                    if d2 <= radius * radius {
+                        f(frame_base + j * width + i, (-d2 / (2.0 * s * s)).exp());
+                    }
+                }
+            }
+        }
     }
 }
 
@@ -141,7 +199,7 @@ pub fn reconstruct(
     records: &[Record],
     h: &Header,
     filter: ReconFilter,
-    accepted: impl Fn(usize) -> bool,
+    accepted: impl Fn(usize) -> bool + Sync,
 ) -> Reconstruction {
     let (mean, occupancy) = mean(records, h, filter);
     Reconstruction::new(records, h, filter, mean, occupancy, accepted)
@@ -150,15 +208,16 @@ pub fn reconstruct(
 /// The mean of all valid samples and every pixel's number of them (its
 /// occupancy): what needs no decision.
 pub fn mean(records: &[Record], h: &Header, filter: ReconFilter) -> (Image, Vec<u32>) {
+    // One thread: the mean is made beside the replay, which has the others.
     let mut film = Film::new(h, filter);
-    let mut occ = vec![0u32; h.pixels() * h.frames as usize];
+    let mut occupancy = vec![0u32; h.pixels() * h.frames as usize];
     for r in records {
         if r.validity(h) == Validity::Valid {
-            occ[r.pixel_index(h)] += 1;
+            occupancy[r.pixel_index(h)] += 1;
             film.splat(r);
         }
     }
-    (film.resolve(&occ), occ)
+    (film.resolve(&occupancy), occupancy)
 }
 
 impl Reconstruction {
@@ -170,14 +229,11 @@ impl Reconstruction {
         filter: ReconFilter,
         mean: Image,
         occupancy: Vec<u32>,
-        accepted: impl Fn(usize) -> bool,
+        accepted: impl Fn(usize) -> bool + Sync,
     ) -> Reconstruction {
-        let mut film = Film::new(h, filter);
-        for (i, r) in records.iter().enumerate() {
-            if r.validity(h) == Validity::Valid && accepted(i) {
-                film.splat(r);
-            }
-        }
+        let film = Film::of_records(h, filter, records, |i, r| {
+            accepted(i).then_some([r.r as f64, r.g as f64, r.b as f64])
+        });
         let mut filtered = film.resolve(&occupancy);
         let fallback: Vec<usize> = (0..occupancy.len())
             .filter(|&px| occupancy[px] > 0 && film.weight(px) == 0.0)
@@ -222,5 +278,52 @@ pub(crate) fn test_header(width: u32, height: u32) -> Header {
         scene: String::new(),
         seed: 0,
         producer: String::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The banded film is the film of one serial pass in file order, for
+    /// any number of bands, both filters, several frames and invalid
+    /// records among the valid ones.
+    #[test]
+    fn banded_films_are_the_serial_film() {
+        let mut h = test_header(7, 5);
+        h.frames = 3;
+        let mut unit = crate::synth::test_units(7);
+        let mut records: Vec<Record> = (0..2000)
+            .map(|_| {
+                let (x, y, t) = (unit() * 7.0, unit() * 5.0, unit() * 3.0);
+                Record::new(
+                    x as f32,
+                    y as f32,
+                    t as f32,
+                    [unit() as f32, 2.0, 100.0 * unit() as f32],
+                )
+            })
+            .collect();
+        records[5].t = f32::NAN;
+        records[9].y = -1.0;
+        records[11].t = 1e30;
+        let keep = |i: usize| i % 3 != 0;
+        for filter in [ReconFilter::Box, ReconFilter::gaussian()] {
+            let mut serial = Film::new(&h, filter);
+            for (i, r) in records.iter().enumerate() {
+                if r.validity(&h) == Validity::Valid && keep(i) {
+                    serial.splat(r);
+                }
+            }
+            for threads in 1..=5 {
+                let pool = crate::par::pool(threads).unwrap();
+                let banded = pool.install(|| {
+                    Film::of_records(&h, filter, &records, |i, r| {
+                        keep(i).then_some([r.r as f64, r.g as f64, r.b as f64])
+                    })
+                });
+                assert!(banded.sum == serial.sum, "{filter:?}, {threads} threads");
+            }
+        }
     }
 }
