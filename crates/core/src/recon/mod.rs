@@ -307,7 +307,7 @@ mod tests {
         records[5].t = f32::NAN;
         records[9].y = -1.0;
         records[11].t = 1e30;
-        let keep = |i: usize| i % 3 != 0;
+        let keep = |i: usize| !i.is_multiple_of(3);
         for filter in [ReconFilter::Box, ReconFilter::gaussian()] {
             let mut serial = Film::new(&h, filter);
             for (i, r) in records.iter().enumerate() {
