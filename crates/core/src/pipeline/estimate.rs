@@ -291,7 +291,12 @@ impl<'s, 'a> Estimators<'s, 'a> {
                         c.energy_sigma,
                     )
                 });
-                self.guided(&with_energy, s + t)
+                let (mut out, s) = self.guided(&with_energy, s + t);
+                // statmc, unlike OIDN, leaves biases that only a block
+                // sees (docs/filter.md F10).
+                let (all, _) = self.shared.interval();
+                let ((), t) = timed(|| all.hold_blocks(&mut out, confidence::Z));
+                (out, s + t)
             }
             Method::Oidn => self.oidn_mean()?.clone(),
             Method::OidnCi => {
@@ -318,7 +323,8 @@ impl<'s, 'a> Estimators<'s, 'a> {
     fn guided(&self, img: &Image, seconds: f64) -> (Image, f64) {
         let (accepted, accepted_s) = self.accepted_interval();
         let (all, all_s) = self.shared.interval();
-        let (out, t) = timed(|| guided::guide(img, accepted, all));
+        let white = 1.0 / self.config.exposure;
+        let (out, t) = timed(|| guided::guide(img, accepted, all, white));
         (
             out,
             seconds.max(self.core.replay_seconds) + accepted_s + all_s + t,

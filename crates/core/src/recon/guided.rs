@@ -12,7 +12,14 @@
 //!   spread energy that the pixel's samples refute goes back to C's edge;
 //! - then, where it lies below A, the accepted samples vouch for more than
 //!   the denoiser kept and the pixel takes their mean m: a feature the
-//!   samples agree on is never dimmed.
+//!   samples agree on is never dimmed;
+//! - last, where the display shows both the result and the samples' mean
+//!   x̄ as white on every channel, the result is held within √2 of the
+//!   pixel's *own* standard errors of x̄ (no pooling): the display cannot
+//!   tell the two apart, and there the unbiased mean is the better linear
+//!   estimate whenever the denoiser is farther from it than that. A small
+//!   light whose samples all agree is not brightened by a neighbour's
+//!   variance; a pixel whose own samples are noisy keeps D.
 //!
 //! The upper bound is C's, not A's: the filter's accepted samples miss
 //! the real but rare bright paths it rejects (a caustic's), so their mean
@@ -27,10 +34,16 @@ use super::confidence::Interval;
 /// The shipped z of the accepted samples' interval.
 pub const Z: f64 = 2.5;
 
+/// Where the display shows a pixel as white, D is held within this many
+/// of the pixel's own standard errors of its mean: beyond √2 SE the mean's
+/// expected squared error, SE², is below the denoiser's, (D − x̄)² − SE².
+pub const SATURATED_Z: f64 = std::f64::consts::SQRT_2;
+
 /// `denoised` steered by `accepted`, the interval of each pixel's accepted
-/// samples, and held inside `all`, the interval of all its samples.
+/// samples, and held inside `all`, the interval of all its samples;
+/// `white` is the linear value the display shows as white (1/exposure).
 /// Pixels with no valid sample stay 0.
-pub fn guide(denoised: &Image, accepted: &Interval, all: &Interval) -> Image {
+pub fn guide(denoised: &Image, accepted: &Interval, all: &Interval, white: f64) -> Image {
     let mut out = all.bound(denoised);
     for (px, v) in out.data.iter_mut().enumerate() {
         if accepted.count[px] == 0 {
@@ -41,6 +54,15 @@ pub fn guide(denoised: &Image, accepted: &Interval, all: &Interval) -> Image {
             if v[c] < m[c] - h[c] {
                 v[c] = m[c];
             }
+        }
+    }
+    for (px, v) in out.data.iter_mut().enumerate() {
+        let (x, se) = (all.centre.data[px], all.own_se.data[px]);
+        let over = |a: &[f64; 3]| a.iter().all(|&c| c >= white);
+        if all.count[px] >= 2 && over(v) && over(&x) {
+            *v = std::array::from_fn(|c| {
+                v[c].clamp(x[c] - SATURATED_Z * se[c], x[c] + SATURATED_Z * se[c])
+            });
         }
     }
     out
@@ -59,11 +81,17 @@ mod tests {
         }
     }
 
+    /// A display that shows nothing as white.
+    fn guide_(d: &Image, accepted: &Interval, all: &Interval) -> Image {
+        guide(d, accepted, all, f64::INFINITY)
+    }
+
     fn interval(m: f64, h: f64, n: u32) -> Interval {
         Interval {
             centre: one(m),
             half_width: one(h),
             count: vec![n],
+            own_se: one(h / 3.0),
         }
     }
 
@@ -73,27 +101,52 @@ mod tests {
         let accepted = interval(100.0, 30.0, 15);
         // A highlight the denoiser dimmed to 28: the accepted samples say
         // 100 ± 30.
-        assert_eq!(guide(&one(28.0), &accepted, &all).data[0], [100.0; 3]);
+        assert_eq!(guide_(&one(28.0), &accepted, &all).data[0], [100.0; 3]);
         // Energy spread into the pixel beyond what all its samples allow.
-        assert_eq!(guide(&one(500.0), &accepted, &all).data[0], [210.0; 3]);
+        assert_eq!(guide_(&one(500.0), &accepted, &all).data[0], [210.0; 3]);
         // Inside both: the denoiser's.
-        assert_eq!(guide(&one(90.0), &accepted, &all).data[0], [90.0; 3]);
+        assert_eq!(guide_(&one(90.0), &accepted, &all).data[0], [90.0; 3]);
         // Above A but inside C: kept (the filter may have rejected real
         // bright samples).
-        assert_eq!(guide(&one(180.0), &accepted, &all).data[0], [180.0; 3]);
+        assert_eq!(guide_(&one(180.0), &accepted, &all).data[0], [180.0; 3]);
     }
 
     #[test]
     fn nothing_accepted_or_nothing_known_is_not_lifted() {
         let all = interval(5.0, 4.0, 4);
         assert_eq!(
-            guide(&one(2.0), &interval(0.0, 0.0, 0), &all).data[0],
+            guide_(&one(2.0), &interval(0.0, 0.0, 0), &all).data[0],
             [2.0; 3]
         );
         let unbounded = interval(8.0, f64::INFINITY, 1);
-        assert_eq!(guide(&one(2.0), &unbounded, &all).data[0], [2.0; 3]);
+        assert_eq!(guide_(&one(2.0), &unbounded, &all).data[0], [2.0; 3]);
         // An empty pixel stays empty.
         let empty = interval(0.0, 0.0, 0);
-        assert_eq!(guide(&one(7.0), &empty, &empty).data[0], [0.0; 3]);
+        assert_eq!(guide_(&one(7.0), &empty, &empty).data[0], [0.0; 3]);
+    }
+
+    /// Where the display shows both as white, the own samples decide: a
+    /// light's 16 equal samples (own SE 0, pooled interval wide) pull a
+    /// spread 885 back to 700; a pixel whose own samples are noisy keeps D;
+    /// below white nothing changes.
+    #[test]
+    fn saturated_pixels_are_held_by_their_own_samples() {
+        let light = Interval {
+            own_se: one(0.0),
+            ..interval(700.0, 300.0, 16)
+        };
+        let none = interval(0.0, 0.0, 0);
+        assert_eq!(guide(&one(885.0), &none, &light, 1.0).data[0], [700.0; 3]);
+        assert_eq!(
+            guide(&one(885.0), &none, &light, 1000.0).data[0],
+            [885.0; 3]
+        );
+        let noisy = Interval {
+            own_se: one(100.0),
+            ..interval(262.0, 300.0, 16)
+        };
+        assert_eq!(guide(&one(149.0), &none, &noisy, 1.0).data[0], [149.0; 3]);
+        let far = 262.0 - SATURATED_Z * 100.0;
+        assert_eq!(guide(&one(50.0), &none, &noisy, 1.0).data[0], [far; 3]);
     }
 }
