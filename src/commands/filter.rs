@@ -420,10 +420,7 @@ fn write_outputs(
         outputs.push("report.html".into());
         outputs.push("report.json".into());
         report.outputs = outputs;
-        atomic::write_bytes(
-            &dir.join("report.html"),
-            html::render(&report, &assets).as_bytes(),
-        )?;
+        html::write(&report, &assets, &dir.join("report.html"))?;
     } else {
         outputs.push("report.json".into());
         report.outputs = outputs;

@@ -5,6 +5,10 @@
 //! to `ok` once the viewer has drawn and every image has decoded, or to
 //! `error: …` — the browser test reads it.
 
+use std::path::Path;
+
+use crate::io::atomic;
+
 use base64::Engine;
 
 use super::FilterReport;
@@ -123,7 +127,28 @@ Promise.all([...document.images].map((img) => img.decode()))
   .catch((e) => status('error: image failed to decode: ' + e));
 "#;
 
-pub fn render(report: &FilterReport, assets: &Assets) -> String {
+/// Writes report.html to `dest`: the page around the viewer's data,
+/// which is written as it is rather than copied into the page.
+pub fn write(
+    report: &FilterReport,
+    assets: &Assets,
+    dest: &Path,
+) -> Result<(), pathdensity_format::Error> {
+    let page = render(report, assets);
+    let (head, tail) = page
+        .split_once(VIEWER_DATA)
+        .expect("the page has the viewer's place");
+    atomic::write_parts(
+        dest,
+        &[head.as_bytes(), assets.viewer.as_bytes(), tail.as_bytes()],
+    )
+}
+
+/// Where the page holds the viewer's data.
+const VIEWER_DATA: &str = "\u{0}viewer-data\u{0}";
+
+/// The page, with [`VIEWER_DATA`] where the viewer's data goes.
+fn render(report: &FilterReport, assets: &Assets) -> String {
     let h = &report.header;
     // Small films are shown enlarged, large ones at most 512 px wide.
     let scale = (512.0 / h.width as f64).clamp(0.25, 4.0).floor().max(1.0);
@@ -219,7 +244,7 @@ pub fn render(report: &FilterReport, assets: &Assets) -> String {
             .map(|n| format!("<p class=\"note\">{}</p>\n", escape(n)))
             .collect::<String>(),
         frames_js = frames_js.join(",\n"),
-        viewer = assets.viewer,
+        viewer = VIEWER_DATA,
     )
 }
 

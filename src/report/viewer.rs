@@ -75,21 +75,6 @@ pub fn data(images: &[Shown], exposure: f64) -> String {
     let (width, height) = kept
         .first()
         .map_or((0, 0), |s| (s.image.width, s.image.height));
-    let entries: Vec<serde_json::Value> = kept
-        .iter()
-        .enumerate()
-        .map(|(i, s)| {
-            let flip = flips.as_ref().and_then(|f| f[i].as_ref());
-            serde_json::json!({
-                "name": s.name,
-                "label": s.name,
-                "caption": s.caption,
-                "kind": s.kind.name(),
-                "data": (0..s.image.frames).map(|f| halves(s.image.frame(f))).collect::<Vec<_>>(),
-                "flip": flip,
-            })
-        })
-        .collect();
     let note = if left_out.is_empty() {
         String::new()
     } else {
@@ -98,29 +83,60 @@ pub fn data(images: &[Shown], exposure: f64) -> String {
             left_out.join(", ")
         )
     };
-    let json = serde_json::json!({
-        "width": width,
-        "height": height,
-        "frames": frames,
-        "exposure": exposure,
-        "images": entries,
-        "reference": reference,
-        "recommended": kept.iter().position(|s| s.kind == Kind::Recommended),
-        "note": note,
-    });
-    // Inside <script>, "</" would end it: JSON allows "<" escaped.
-    json.to_string().replace('<', "\\u003c")
+    // Written piece by piece, the pixels encoded straight into the page's
+    // text: a 1080p page holds about 130 MB of base64, made once.
+    let mut out = format!(
+        "{{\"width\":{width},\"height\":{height},\"frames\":{frames},\"exposure\":{},\"reference\":{},\"recommended\":{},\"note\":{},\"images\":[",
+        serde_json::json!(exposure),
+        serde_json::json!(reference),
+        serde_json::json!(kept.iter().position(|s| s.kind == Kind::Recommended)),
+        text(&note),
+    );
+    for (i, s) in kept.iter().enumerate() {
+        if i > 0 {
+            out.push(',');
+        }
+        out += &format!(
+            "{{\"name\":{n},\"label\":{n},\"caption\":{},\"kind\":\"{}\",\"data\":[",
+            text(&s.caption),
+            s.kind.name(),
+            n = text(&s.name),
+        );
+        for f in 0..s.image.frames {
+            if f > 0 {
+                out.push(',');
+            }
+            out.push('"');
+            halves(s.image.frame(f), &mut out);
+            out.push('"');
+        }
+        out += "],\"flip\":";
+        match flips.as_ref().and_then(|f| f[i].as_ref()) {
+            Some(maps) => out += &serde_json::json!(maps).to_string(),
+            None => out += "null",
+        }
+        out.push('}');
+    }
+    out += "]}";
+    out
 }
 
-/// Base64 of the pixels as little-endian half floats, RGB interleaved.
-fn halves(pixels: &[[f64; 3]]) -> String {
+/// `s` as a JSON string that is safe inside `<script>`: "</" would end
+/// it, and JSON allows "<" escaped.
+fn text(s: &str) -> String {
+    serde_json::json!(s).to_string().replace('<', "\\u003c")
+}
+
+/// Appends to `out` the base64 of the pixels as little-endian half floats,
+/// RGB interleaved.
+fn halves(pixels: &[[f64; 3]], out: &mut String) {
     let mut bytes = Vec::with_capacity(pixels.len() * 6);
     for p in pixels {
         for v in p {
             bytes.extend_from_slice(&f16::from_f64(*v).to_le_bytes());
         }
     }
-    base64::engine::general_purpose::STANDARD.encode(bytes)
+    base64::engine::general_purpose::STANDARD.encode_string(bytes, out);
 }
 
 /// Per image (None for the reference) and frame, base64 of its FLIP map
@@ -166,7 +182,8 @@ mod tests {
 
     #[test]
     fn halves_are_little_endian_rgb() {
-        let s = halves(&[[1.0, -2.0, 65504.0]]);
+        let mut s = String::new();
+        halves(&[[1.0, -2.0, 65504.0]], &mut s);
         let b = base64::engine::general_purpose::STANDARD.decode(s).unwrap();
         assert_eq!(b, [0x00, 0x3c, 0x00, 0xc0, 0xff, 0x7b]);
     }

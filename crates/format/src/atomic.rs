@@ -277,9 +277,17 @@ fn swap_in(staged: &Path, dest: &Path) -> Result<(), Error> {
 
 /// Writes `bytes` to `dest` atomically, synced to disk.
 pub fn write_bytes(dest: &Path, bytes: &[u8]) -> Result<(), Error> {
+    write_parts(dest, &[bytes])
+}
+
+/// Writes `parts`, one after the other, to `dest` atomically, synced to
+/// disk: a large file made of pieces is never joined in memory.
+pub fn write_parts(dest: &Path, parts: &[&[u8]]) -> Result<(), Error> {
     let mut f = AtomicFile::create(dest)?;
     let file = f.file_mut();
-    file.write_all(bytes)
+    parts
+        .iter()
+        .try_for_each(|p| file.write_all(p))
         .and_then(|_| file.sync_all())
         .map_err(|e| Error::io(dest, e))?;
     f.commit()
