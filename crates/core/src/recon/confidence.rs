@@ -38,6 +38,8 @@ pub struct Interval {
     pub count: Vec<u32>,
     /// s/√n from the pixel's own samples alone (0 below two samples).
     pub own_se: Image,
+    /// The z of `half_width`.
+    pub z: f64,
 }
 
 impl Interval {
@@ -62,18 +64,21 @@ impl Interval {
 }
 
 impl Interval {
-    /// `img` held, at every scale, inside the interval of each block's
-    /// mean: blocks of b × b pixels for b = 2, 4, … up to the film's size,
+    /// `img` steered, block by block, towards the interval of each block's
+    /// mean (docs/filter.md F10, "Blocks"): aligned blocks of b × b pixels
+    /// for b = 2, 4, … up to the film's size (partial at the film's edges),
     /// finest first, each frame and channel apart. A block's mean of its
     /// pixels' sample means is unbiased with standard error √(Σ SEₚ²)/P
-    /// over its P pixels with samples, far narrower than a pixel's; where
-    /// the image's mean over the block lies beyond z of them, the block is
-    /// scaled to the interval's edge (shifted, if its mean is not above
-    /// 0). A denoiser's bias that no pixel's interval can see (a region
-    /// made darker or brighter as a whole) is then bounded, while one
-    /// outlier moves its block's mean by about one of its SEs and never
-    /// starts a correction. A block with a pixel of unbounded interval is
-    /// left alone.
+    /// over its P pixels with a bounded interval (SEₚ = half_width / z of
+    /// this interval), far narrower than a pixel's; where the image's mean
+    /// over those pixels lies beyond `z` of them, they are scaled so that
+    /// it sits on the interval's edge (shifted instead where either mean
+    /// is not above 0). A denoiser's bias that no pixel's interval can see
+    /// (a region made darker or brighter as a whole) is then bounded,
+    /// while one outlier moves its block's mean by about one of its SEs
+    /// and never starts a correction. A coarser block can move a finer
+    /// one again; pixels without samples or with an unbounded interval,
+    /// and blocks whose image is not finite, are left alone.
     pub fn hold_blocks(&self, img: &mut Image, z: f64) {
         let (w, h) = (img.width, img.height);
         let mut b = 2;
@@ -81,11 +86,11 @@ impl Interval {
             for f in 0..img.frames {
                 for by in (0..h).step_by(b) {
                     for bx in (0..w).step_by(b) {
-                        let pixels: Vec<usize> = (by..(by + b).min(h))
-                            .flat_map(|y| (bx..(bx + b).min(w)).map(move |x| (f * h + y) * w + x))
-                            .filter(|&px| self.count[px] > 0)
-                            .collect();
-                        self.hold_block(img, &pixels, z);
+                        let rows = by..(by + b).min(h);
+                        let cols = bx..(bx + b).min(w);
+                        let base = f * w * h;
+                        let block = rows.flat_map(|y| cols.clone().map(move |x| base + y * w + x));
+                        self.hold_block(img, block, z);
                     }
                 }
             }
@@ -93,30 +98,32 @@ impl Interval {
         }
     }
 
-    fn hold_block(&self, img: &mut Image, pixels: &[usize], z: f64) {
-        if pixels.is_empty() {
+    fn hold_block(&self, img: &mut Image, block: impl Iterator<Item = usize> + Clone, z: f64) {
+        let held = |px: &usize| {
+            self.count[*px] > 0 && self.half_width.data[*px].iter().all(|h| h.is_finite())
+        };
+        let (mut n, mut mean, mut var, mut g) = (0.0, [0.0; 3], [0.0; 3], [0.0; 3]);
+        for px in block.clone().filter(held) {
+            n += 1.0;
+            for c in 0..3 {
+                mean[c] += self.centre.data[px][c];
+                let se = self.half_width.data[px][c] / self.z;
+                var[c] += se * se;
+                g[c] += img.data[px][c];
+            }
+        }
+        if n == 0.0 {
             return;
         }
-        let n = pixels.len() as f64;
         for c in 0..3 {
-            let (mut mean, mut var, mut g) = (0.0, 0.0, 0.0);
-            for &px in pixels {
-                mean += self.centre.data[px][c];
-                let se = self.half_width.data[px][c] / Z;
-                var += se * se;
-                g += img.data[px][c];
-            }
-            let (mean, g, half) = (mean / n, g / n, z * var.sqrt() / n);
-            if !half.is_finite() {
-                continue;
-            }
+            let (mean, g, half) = (mean[c] / n, g[c] / n, z * var[c].sqrt() / n);
             let target = g.clamp(mean - half, mean + half);
-            if target == g {
+            if !g.is_finite() || target == g {
                 continue;
             }
-            for &px in pixels {
+            for px in block.clone().filter(held) {
                 let v = &mut img.data[px][c];
-                *v = if g > 0.0 {
+                *v = if g > 0.0 && target > 0.0 {
                     *v * (target / g)
                 } else {
                     *v + target - g
@@ -219,15 +226,17 @@ pub fn interval_of(
         });
     }
     let count = moments.iter().map(|m| m.n).collect();
-    let mut own = Image::for_header(h);
-    for (o, se) in own.data.iter_mut().zip(&own_se) {
-        *o = *se;
-    }
     Interval {
         centre,
         half_width,
         count,
-        own_se: own,
+        own_se: Image {
+            width: w,
+            height: ht,
+            frames: h.frames as usize,
+            data: own_se,
+        },
+        z,
     }
 }
 
@@ -332,35 +341,85 @@ mod tests {
         assert_eq!(ci.clamp(3, [4.0, 1.0, -1.0]), [0.0; 3]);
     }
 
-    /// A 4 × 4 film, every pixel's mean 10 with SE 1: an image 9
-    /// everywhere is inside every pixel's and every 2 × 2 block's interval
-    /// but not the whole film's (10 ± 3·√16/16), and is scaled to its
-    /// edge; one pixel at 14 moves no block's mean out of its interval.
+    fn film(w: usize, h: usize, frames: usize, v: f64) -> Image {
+        Image {
+            width: w,
+            height: h,
+            frames,
+            data: vec![[v; 3]; w * h * frames],
+        }
+    }
+
+    /// Every pixel's mean 10 with SE 1 (own SE 5, which blocks do not use).
+    fn tens(w: usize, h: usize, frames: usize) -> Interval {
+        Interval {
+            centre: film(w, h, frames, 10.0),
+            half_width: film(w, h, frames, 2.0 * 1.0),
+            count: vec![4; w * h * frames],
+            own_se: film(w, h, frames, 5.0),
+            z: 2.0,
+        }
+    }
+
+    /// A 4 × 4 film: an image 9 on average is inside every 2 × 2 block's
+    /// interval (10 ± 3·√4/4) but not the whole film's (10 ± 3·√16/16), and
+    /// is scaled, not shifted, so that its mean sits on that edge; one
+    /// pixel at 14 moves no block's mean out of its interval.
     #[test]
     fn blocks_bound_a_regional_bias_and_not_an_outlier() {
-        let flat = |v: f64| Image {
-            width: 4,
-            height: 4,
-            frames: 1,
-            data: vec![[v; 3]; 16],
-        };
-        let ci = Interval {
-            centre: flat(10.0),
-            half_width: flat(Z),
-            count: vec![4; 16],
-            own_se: flat(1.0),
-        };
-        let mut dim = flat(9.0);
+        let ci = tens(4, 4, 1);
+        let mut dim = film(4, 4, 1, 9.0);
+        dim.data[0] = [4.5; 3];
+        dim.data[1] = [13.5; 3];
         ci.hold_blocks(&mut dim, Z);
-        for v in &dim.data {
+        let k = 9.25 / 9.0;
+        for (px, v) in dim.data.iter().enumerate() {
+            let want = [4.5 * k, 13.5 * k, 9.0 * k][px.min(2)];
             for c in v {
-                assert!((c - 9.25).abs() < 1e-12, "{c}");
+                assert!((c - want).abs() < 1e-12, "{px}: {c}");
             }
         }
-        let mut outlier = flat(10.0);
+        let mut outlier = film(4, 4, 1, 10.0);
         outlier.data[5] = [14.0; 3];
         let before = outlier.data.clone();
         ci.hold_blocks(&mut outlier, Z);
         assert_eq!(outlier.data, before);
+    }
+
+    /// A 5 × 3 film of two frames, blocks partial at its edges. Frame 0
+    /// is 9 everywhere but for one pixel of unbounded interval, which is
+    /// left out and alone; the coarsest block puts the mean of the 14
+    /// others on 10 − 3·√14/14. Frame 1 is 19 against 20, inside every
+    /// block that has no NaN, and a NaN pixel stops every block that has
+    /// it: frame 1 stays as it was (nothing crosses between frames).
+    #[test]
+    fn blocks_leave_unbounded_pixels_nan_and_other_frames_alone() {
+        let mut ci = tens(5, 3, 2);
+        let corner = 2 * 5 + 4;
+        ci.half_width.data[corner] = [f64::INFINITY; 3];
+        for v in &mut ci.centre.data[15..] {
+            *v = [20.0; 3];
+        }
+        let mut img = film(5, 3, 2, 9.0);
+        img.data[corner] = [100.0; 3];
+        for v in &mut img.data[15..] {
+            *v = [19.0; 3];
+        }
+        img.data[15 + 7] = [f64::NAN; 3];
+        ci.hold_blocks(&mut img, Z);
+        assert_eq!(img.data[corner], [100.0; 3]);
+        let held: f64 = (0..15)
+            .filter(|&px| px != corner)
+            .map(|px| img.data[px][0])
+            .sum();
+        let edge = 10.0 - 3.0 * 14f64.sqrt() / 14.0;
+        assert!((held / 14.0 - edge).abs() < 1e-12, "{}", held / 14.0);
+        for (px, v) in img.data[15..].iter().enumerate() {
+            if px == 7 {
+                assert!(v[0].is_nan());
+            } else {
+                assert_eq!(*v, [19.0; 3], "{px}");
+            }
+        }
     }
 }

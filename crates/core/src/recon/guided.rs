@@ -16,10 +16,11 @@
 //! - last, where the display shows both the result and the samples' mean
 //!   x̄ as white on every channel, the result is held within √2 of the
 //!   pixel's *own* standard errors of x̄ (no pooling): the display cannot
-//!   tell the two apart, and there the unbiased mean is the better linear
-//!   estimate whenever the denoiser is farther from it than that. A small
-//!   light whose samples all agree is not brightened by a neighbour's
-//!   variance; a pixel whose own samples are noisy keeps D.
+//!   tell the two apart, so only the linear error counts there (the MSE
+//!   break-even of an unbiased mean against an independent estimate; a
+//!   heuristic, as D is made from x̄). A small light whose samples all
+//!   agree is not brightened by a neighbour's spread energy; a pixel
+//!   whose own samples are noisy keeps D.
 //!
 //! The upper bound is C's, not A's: the filter's accepted samples miss
 //! the real but rare bright paths it rejects (a caustic's), so their mean
@@ -92,6 +93,7 @@ mod tests {
             half_width: one(h),
             count: vec![n],
             own_se: one(h / 3.0),
+            z: 3.0,
         }
     }
 
@@ -148,5 +150,25 @@ mod tests {
         assert_eq!(guide(&one(149.0), &none, &noisy, 1.0).data[0], [149.0; 3]);
         let far = 262.0 - SATURATED_Z * 100.0;
         assert_eq!(guide(&one(50.0), &none, &noisy, 1.0).data[0], [far; 3]);
+        // Both must be white on every channel, with two samples or more.
+        let dim = Interval {
+            centre: Image {
+                data: vec![[700.0, 700.0, 0.5]],
+                ..one(0.0)
+            },
+            ..light
+        };
+        let d = Image {
+            data: vec![[885.0, 885.0, 0.8]],
+            ..one(0.0)
+        };
+        assert_eq!(guide(&d, &none, &dim, 1.0).data[0], [885.0, 885.0, 0.8]);
+        let below = interval(0.5, 300.0, 16);
+        assert_eq!(guide(&one(885.0), &none, &below, 1.0).data[0], [300.5; 3]);
+        let single = Interval {
+            own_se: one(0.0),
+            ..interval(700.0, 300.0, 1)
+        };
+        assert_eq!(guide(&one(885.0), &none, &single, 1.0).data[0], [885.0; 3]);
     }
 }
