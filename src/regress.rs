@@ -173,11 +173,11 @@ fn run(dir: &Path, m: &Manifest) -> Result<Outcome> {
     );
     dump.intact()?;
     let run = run.with_context(|| format!("{}", dir.join("manifest.json").display()))?;
-    let mut images: Vec<(String, Image)> = Vec::new();
+    let mut images: Vec<(String, &Image)> = Vec::new();
     for e in run.images.iter() {
-        images.push((e.id().to_string(), e.image.clone()));
+        images.push((e.id().to_string(), &e.image));
     }
-    images.push(("rejected".into(), run.removed.clone()));
+    images.push(("rejected".into(), &run.removed));
     let mut files = Vec::new();
     for (name, img) in images {
         for f in 0..img.frames {

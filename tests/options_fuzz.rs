@@ -60,7 +60,7 @@ fn non_finite_image(config: &FilterConfig, h: &Header, recs: &[Record]) -> Optio
     let images = run
         .images
         .iter()
-        .map(|e| (e.id().to_string(), &e.image))
+        .map(|e| (e.id().to_string(), &*e.image))
         .chain([("rejected".to_string(), &run.removed)])
         .chain(run.sigma_image.iter().map(|s| ("sigma".to_string(), s)));
     for (name, img) in images {

@@ -290,7 +290,7 @@ fn write_outputs(
             || {
                 run.images
                     .iter()
-                    .map(|e| (e.id().to_string(), &e.image))
+                    .map(|e| (e.id().to_string(), &*e.image))
                     .chain([("rejected".to_string(), &run.removed)])
                     .collect::<Vec<_>>()
                     .par_iter()

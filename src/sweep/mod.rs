@@ -6,6 +6,7 @@
 pub mod equal_time;
 
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Result, bail};
@@ -308,7 +309,11 @@ pub fn run(o: &SweepOptions, progress: &dyn Progress) -> Result<Sweep> {
                 }
             }
         }
-        Ok::<_, anyhow::Error>((baselines, valid, core.reconstruction.mean))
+        Ok::<_, anyhow::Error>((
+            baselines,
+            valid,
+            Arc::unwrap_or_clone(core.reconstruction.mean),
+        ))
     })?;
 
     let configs = grid(o);
@@ -424,7 +429,10 @@ fn configuration(
         config.energy_sigma,
     );
     row.energy_metrics = Some(metrics::compare(&energy_aware, reference, config.exposure).pooled);
-    (row, Some(core.reconstruction.filtered))
+    (
+        row,
+        Some(Arc::unwrap_or_clone(core.reconstruction.filtered)),
+    )
 }
 
 impl Row {

@@ -12,8 +12,8 @@
 //! image's time includes the work it shares with others, so it is the
 //! cost of that image alone.
 
-use std::sync::OnceLock;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
 use crate::config::FilterConfig;
@@ -46,7 +46,14 @@ impl Core {
         reconstruct_seconds: f64,
         replay_seconds: f64,
     ) -> Core {
-        let removed = energy::removed(&reconstruction.mean, &reconstruction.filtered);
+        let (mean, filtered) = (&reconstruction.mean, &reconstruction.filtered);
+        // Nothing removed where every sample is accepted: zeros the
+        // allocator leaves untouched.
+        let removed = if Arc::ptr_eq(mean, filtered) {
+            Image::new(mean.width, mean.height, mean.frames)
+        } else {
+            energy::removed(mean, filtered)
+        };
         Core {
             reconstruction,
             removed,
@@ -121,13 +128,13 @@ pub struct Estimators<'s, 'a> {
     robust: OnceLock<(RobustImages, f64)>,
     mon: OnceLock<(MonImages, f64)>,
     /// OIDN's image of the mean (`oidn`, and `oidn_ci` starts from it).
-    oidn_mean: OnceLock<Result<(Image, f64), OidnError>>,
-    filtered_energy: OnceLock<(Image, f64)>,
+    oidn_mean: OnceLock<Result<(Arc<Image>, f64), OidnError>>,
+    filtered_energy: OnceLock<(Arc<Image>, f64)>,
     /// The filter's decisions, one byte per record ([`Self::with_decisions`]).
     decisions: Option<&'s [u8]>,
     /// Every pixel's confidence interval of its accepted samples.
     accepted_interval: OnceLock<(Interval, f64)>,
-    statmc: OnceLock<(Image, f64)>,
+    statmc: OnceLock<(Arc<Image>, f64)>,
     /// OIDN's auxiliary images ([`Self::with_aux`]).
     aux: Option<&'s imagespace::oidn::Aux>,
 }
@@ -225,16 +232,18 @@ impl<'s, 'a> Estimators<'s, 'a> {
     }
 
     /// `method`'s image and the seconds it took from the dump. Only OIDN
-    /// can fail (its library reports an error).
-    pub fn image(&self, method: Method) -> Result<(Image, f64), OidnError> {
+    /// can fail (its library reports an error). An image that is also
+    /// shared work (the mean, filtered, median, …) is shared, not copied.
+    pub fn image(&self, method: Method) -> Result<(Arc<Image>, f64), OidnError> {
         let (records, h, c) = (self.shared.records, self.shared.header, self.config);
         let rec = &self.core.reconstruction;
         let mean_s = self.core.reconstruct_seconds;
         let filtered_s = self.core.replay_seconds + mean_s;
-        let after = |base: f64, (img, s): (Image, f64)| (img, base + s);
+        let after = |base: f64, (img, s): (Image, f64)| (Arc::new(img), base + s);
+        let made = |(img, s): (Image, f64)| (Arc::new(img), s);
         Ok(match method {
-            Method::Mean => (rec.mean.clone(), mean_s),
-            Method::Filtered => (rec.filtered.clone(), filtered_s),
+            Method::Mean => (Arc::clone(&rec.mean), mean_s),
+            Method::Filtered => (Arc::clone(&rec.filtered), filtered_s),
             Method::Median => self.robust(|r| &r.median),
             Method::Trimmed => self.robust(|r| &r.trimmed),
             Method::Mon => self.mon(|m| &m.mon),
@@ -260,24 +269,24 @@ impl<'s, 'a> Estimators<'s, 'a> {
                     )
                 }),
             ),
-            Method::Rwmc => timed(|| rwmc::rwmc(records, h, &c.rwmc())),
-            Method::Clamp => {
-                timed(|| clamp::clamped_mean(records, h, c.recon.filter(), c.clamp, &rec.occupancy))
-            }
+            Method::Rwmc => made(timed(|| rwmc::rwmc(records, h, &c.rwmc()))),
+            Method::Clamp => made(timed(|| {
+                clamp::clamped_mean(records, h, c.recon.filter(), c.clamp, &rec.occupancy)
+            })),
             Method::FilteredEnergy => {
                 let (fe, s) = self.filtered_energy();
-                (fe.clone(), *s)
+                (Arc::clone(fe), *s)
             }
             Method::FilteredEnergyBilateralCi => {
                 let (fe, fe_s) = self.filtered_energy();
                 let (smoothed, t) = timed(|| {
                     imagespace::bilateral(fe, &rec.occupancy, c.bilateral(), self.white())
                 });
-                self.bounded(&smoothed, fe_s + t)
+                made(self.bounded(&smoothed, fe_s + t))
             }
             Method::Statmc => {
                 let (img, s) = self.statmc();
-                (img.clone(), *s)
+                (Arc::clone(img), *s)
             }
             Method::Guided => {
                 let (denoised, s) = self.statmc();
@@ -296,16 +305,19 @@ impl<'s, 'a> Estimators<'s, 'a> {
                 // sees (docs/filter.md F10).
                 let (all, _) = self.shared.interval();
                 let ((), t) = timed(|| all.hold_blocks(&mut out, confidence::Z));
-                (out, s + t)
+                (Arc::new(out), s + t)
             }
-            Method::Oidn => self.oidn_mean()?.clone(),
+            Method::Oidn => {
+                let (denoised, s) = self.oidn_mean()?;
+                (Arc::clone(denoised), *s)
+            }
             Method::OidnCi => {
                 let (denoised, s) = self.oidn_mean()?;
-                self.bounded(denoised, *s)
+                made(self.bounded(denoised, *s))
             }
             Method::GuidedOidn => {
                 let (denoised, s) = self.oidn_mean()?;
-                self.guided(denoised, *s)
+                made(self.guided(denoised, *s))
             }
         })
     }
@@ -333,7 +345,7 @@ impl<'s, 'a> Estimators<'s, 'a> {
 
     /// statmc of the accepted samples, made once, and the seconds from the
     /// dump.
-    fn statmc(&self) -> &(Image, f64) {
+    fn statmc(&self) -> &(Arc<Image>, f64) {
         let decisions = self
             .decisions
             .expect("an image that needs the decisions is made with them");
@@ -343,7 +355,7 @@ impl<'s, 'a> Estimators<'s, 'a> {
                     Decision::accepted(decisions[i])
                 })
             });
-            (img, self.core.replay_seconds + s)
+            (Arc::new(img), self.core.replay_seconds + s)
         })
     }
 
@@ -365,11 +377,11 @@ impl<'s, 'a> Estimators<'s, 'a> {
     }
 
     /// OIDN's image of the mean, made once, and the seconds from the dump.
-    fn oidn_mean(&self) -> Result<&(Image, f64), OidnError> {
+    fn oidn_mean(&self) -> Result<&(Arc<Image>, f64), OidnError> {
         self.oidn_mean
             .get_or_init(|| {
                 let (d, s) = self.oidn(&self.core.reconstruction.mean)?;
-                Ok((d, self.core.reconstruct_seconds + s))
+                Ok((Arc::new(d), self.core.reconstruct_seconds + s))
             })
             .as_ref()
             .map_err(Clone::clone)
@@ -377,10 +389,10 @@ impl<'s, 'a> Estimators<'s, 'a> {
 
     /// `method`'s image denoised by OIDN (`METHOD+oidn`), and the seconds
     /// from the dump.
-    pub fn denoised(&self, method: Method) -> Result<(Image, f64), OidnError> {
+    pub fn denoised(&self, method: Method) -> Result<(Arc<Image>, f64), OidnError> {
         let (img, s) = self.image(method)?;
         let (denoised, t) = self.oidn(&img)?;
-        Ok((denoised, s + t))
+        Ok((Arc::new(denoised), s + t))
     }
 
     fn oidn(&self, img: &Image) -> Result<(Image, f64), OidnError> {
@@ -399,7 +411,7 @@ impl<'s, 'a> Estimators<'s, 'a> {
     }
 
     /// filtered_energy, made once (its image and the bilateral's input).
-    fn filtered_energy(&self) -> &(Image, f64) {
+    fn filtered_energy(&self) -> &(Arc<Image>, f64) {
         let rec = &self.core.reconstruction;
         self.filtered_energy.get_or_init(|| {
             let (img, s) = timed(|| {
@@ -411,15 +423,15 @@ impl<'s, 'a> Estimators<'s, 'a> {
                 )
             });
             (
-                img,
+                Arc::new(img),
                 self.core.replay_seconds + self.core.reconstruct_seconds + s,
             )
         })
     }
 
-    fn robust(&self, pick: impl Fn(&RobustImages) -> &Image) -> (Image, f64) {
+    fn robust(&self, pick: impl Fn(&RobustImages) -> &Arc<Image>) -> (Arc<Image>, f64) {
         let (r, s) = self.robust_images();
-        (pick(r).clone(), s)
+        (Arc::clone(pick(r)), s)
     }
 
     /// Median and trimmed, made once, and the seconds from the dump.
@@ -431,9 +443,9 @@ impl<'s, 'a> Estimators<'s, 'a> {
         (r, group_s + s)
     }
 
-    fn mon(&self, pick: impl Fn(&MonImages) -> &Image) -> (Image, f64) {
+    fn mon(&self, pick: impl Fn(&MonImages) -> &Arc<Image>) -> (Arc<Image>, f64) {
         let (m, s) = self.mon_images();
-        (pick(m).clone(), s)
+        (Arc::clone(pick(m)), s)
     }
 
     /// mon and gmon, made once, and the seconds from the dump.

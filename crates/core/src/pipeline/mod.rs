@@ -9,6 +9,7 @@ pub mod estimate;
 pub mod memory;
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 use std::time::Instant;
 
 use crate::config::{ConfigError, Denoise, FilterConfig, FinalPass};
@@ -76,7 +77,7 @@ pub struct MethodImage {
     pub method: Method,
     /// Denoised by `config.denoise` after `method` (`METHOD+oidn`).
     pub denoised: bool,
-    pub image: Image,
+    pub image: Arc<Image>,
     pub seconds: f64,
 }
 
@@ -175,7 +176,7 @@ impl Run {
         self.images
             .iter()
             .find(|e| e.method == m && !e.denoised)
-            .map(|e| &e.image)
+            .map(|e| &*e.image)
     }
 }
 
@@ -307,7 +308,7 @@ pub fn run(
                 let t = Instant::now();
                 let (mean, occupancy) = recon::mean(records, header, config.recon.filter());
                 // Every sample accepted: decision-free images read no filtered image.
-                let rec = Reconstruction::all_accepted(mean, occupancy);
+                let rec = Reconstruction::all_accepted(Arc::new(mean), occupancy);
                 let core = Core::new(rec, t.elapsed().as_secs_f64(), 0.0);
                 let images = images(
                     &Estimators::before_white(&shared, config, &core).with_aux(options.aux),
@@ -366,7 +367,7 @@ pub fn run(
     images.sort_by_key(|e| wanted.iter().position(|&w| w == (e.method, e.denoised)));
     let metrics = match options.reference {
         Some(r) => {
-            let all: Vec<&Image> = images.iter().map(|e| &e.image).collect();
+            let all: Vec<&Image> = images.iter().map(|e| &*e.image).collect();
             let m = metrics::compare_all(&all, r, config.exposure);
             images.iter().map(MethodImage::id).zip(m).collect()
         }

@@ -13,6 +13,8 @@ pub mod robust;
 pub mod rwmc;
 pub mod statmc;
 
+use std::sync::Arc;
+
 use crate::dump::{Header, Record, Validity};
 pub use pathdensity_format::image::{Image, stored};
 
@@ -181,10 +183,11 @@ fn add(acc: &mut [f64; 4], c: [f64; 3], w: f64) {
     acc[3] += w;
 }
 
-/// The mean and filtered images of docs/filter.md §3.
+/// The mean and filtered images of docs/filter.md §3, shared (not copied)
+/// with the images a run returns.
 pub struct Reconstruction {
-    pub mean: Image,
-    pub filtered: Image,
+    pub mean: Arc<Image>,
+    pub filtered: Arc<Image>,
     pub occupancy: Vec<u32>,
     /// Pixels with valid samples but no accepted weight, which fell back to
     /// their median.
@@ -202,7 +205,7 @@ pub fn reconstruct(
     accepted: impl Fn(usize) -> bool + Sync,
 ) -> Reconstruction {
     let (mean, occupancy) = mean(records, h, filter);
-    Reconstruction::new(records, h, filter, mean, occupancy, accepted)
+    Reconstruction::new(records, h, filter, Arc::new(mean), occupancy, accepted)
 }
 
 /// The mean of all valid samples and every pixel's number of them (its
@@ -227,7 +230,7 @@ impl Reconstruction {
         records: &[Record],
         h: &Header,
         filter: ReconFilter,
-        mean: Image,
+        mean: Arc<Image>,
         occupancy: Vec<u32>,
         accepted: impl Fn(usize) -> bool + Sync,
     ) -> Reconstruction {
@@ -244,7 +247,7 @@ impl Reconstruction {
         }
         Reconstruction {
             mean,
-            filtered,
+            filtered: Arc::new(filtered),
             empty_pixels: occupancy.iter().filter(|&&n| n == 0).count() as u64,
             fallback_pixels: fallback.len() as u64,
             occupancy,
@@ -253,9 +256,9 @@ impl Reconstruction {
 
     /// Every sample accepted: the filtered image is the mean (no pixel
     /// falls back, since each sample weighs on its own pixel).
-    pub fn all_accepted(mean: Image, occupancy: Vec<u32>) -> Reconstruction {
+    pub fn all_accepted(mean: Arc<Image>, occupancy: Vec<u32>) -> Reconstruction {
         Reconstruction {
-            filtered: mean.clone(),
+            filtered: Arc::clone(&mean),
             mean,
             empty_pixels: occupancy.iter().filter(|&&n| n == 0).count() as u64,
             fallback_pixels: 0,

@@ -8,6 +8,8 @@
 //! luminance and whole colours are kept, so neither estimator shifts hue
 //! the way a per-channel median does (the paper's Figure 4 problem).
 
+use std::sync::Arc;
+
 use super::Image;
 use super::groups::{Channels, PixelGroups};
 use crate::dump::Header;
@@ -110,8 +112,8 @@ fn gini_median_of_sorted(means: &[[f64; 3]]) -> [f64; 3] {
 
 /// The MoN and G-MoN images, in one grouped pass.
 pub struct MonImages {
-    pub mon: Image,
-    pub gmon: Image,
+    pub mon: Arc<Image>,
+    pub gmon: Arc<Image>,
 }
 
 pub fn mon_images(groups: &PixelGroups, h: &Header, m: usize) -> MonImages {
@@ -125,7 +127,10 @@ pub fn mon_images(groups: &PixelGroups, h: &Header, m: usize) -> MonImages {
         mon.data[px] = a;
         gmon.data[px] = b;
     }
-    MonImages { mon, gmon }
+    MonImages {
+        mon: Arc::new(mon),
+        gmon: Arc::new(gmon),
+    }
 }
 
 #[cfg(test)]

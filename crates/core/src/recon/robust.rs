@@ -1,6 +1,8 @@
 //! Per-pixel robust estimators (docs/filter.md §3): the median and the α-trimmed
 //! mean, per channel, over the valid samples a pixel contains.
 
+use std::sync::Arc;
+
 use super::Image;
 use super::groups::PixelGroups;
 use super::median::{median_of_sorted, sort_total};
@@ -35,8 +37,8 @@ fn trimmed_mean_of_sorted(v: &[f64], alpha: f64) -> f64 {
 /// The per-pixel median and trimmed-mean images, computed in one grouped
 /// pass over the dump.
 pub struct RobustImages {
-    pub median: Image,
-    pub trimmed: Image,
+    pub median: Arc<Image>,
+    pub trimmed: Arc<Image>,
 }
 
 pub fn robust_images(groups: &PixelGroups, h: &Header, alpha: f64) -> RobustImages {
@@ -58,8 +60,8 @@ pub fn robust_images(groups: &PixelGroups, h: &Header, alpha: f64) -> RobustImag
         trimmed_img.data[px] = t;
     }
     RobustImages {
-        median: median_img,
-        trimmed: trimmed_img,
+        median: Arc::new(median_img),
+        trimmed: Arc::new(trimmed_img),
     }
 }
 
