@@ -95,7 +95,7 @@ pub struct Strata {
     n: u32,
     /// Pixels of a frame.
     pixels: u64,
-    spp: u64,
+    pub(super) spp: u64,
     pass_major: bool,
 }
 
@@ -120,18 +120,43 @@ impl Strata {
         })
     }
 
+    /// Record `rec`'s pixel (counting frames in turn) and its sample.
     #[inline]
-    fn wants(self, rec: u64) -> bool {
+    fn place(self, rec: u64) -> (u64, u64) {
         // Pixel-major: rec = p·spp + s (p counting frames in turn);
         // pass-major: rec = (f·spp + s)·pixels + p within frame f.
-        let (pixel, s) = if self.pass_major {
+        if self.pass_major {
             let (pass, p) = (rec / self.pixels, rec % self.pixels);
             let (f, s) = (pass / self.spp, pass % self.spp);
             (f * self.pixels + p, s)
         } else {
             (rec / self.spp, rec % self.spp)
-        };
+        }
+    }
+
+    #[inline]
+    pub(super) fn wants(self, rec: u64) -> bool {
+        let (pixel, s) = self.place(rec);
         (s + mix(pixel) % self.n as u64).is_multiple_of(self.n as u64)
+    }
+
+    /// The most samples a pixel has picked, ⌈spp / n⌉.
+    pub(super) fn per_pixel(self) -> u64 {
+        self.spp.div_ceil(self.n as u64)
+    }
+
+    /// Slots for the picked samples of `records` records: ⌈spp / n⌉ a
+    /// pixel (a pixel with ⌊spp / n⌋ leaves its last one empty).
+    pub(super) fn slots(self, records: usize) -> usize {
+        (records as u64 / self.spp * self.per_pixel()) as usize
+    }
+
+    /// The slot of a picked record: its pixel's, then its rank among the
+    /// pixel's picked samples, which is their order in the file.
+    #[inline]
+    pub(super) fn slot(self, rec: u64) -> usize {
+        let (pixel, s) = self.place(rec);
+        (pixel * self.per_pixel() + s / self.n as u64) as usize
     }
 }
 
@@ -139,7 +164,7 @@ impl Strata {
     /// [`ExactSigma::for_each_wanted`]: in a pixel-major dump each pixel's
     /// picked samples are every n-th from the first, in a pass-major one
     /// each pass picks the pixels of one residue of mix(p) mod n.
-    fn for_each_wanted(self, recs: std::ops::Range<u64>, mut f: impl FnMut(u64)) {
+    pub(super) fn for_each_wanted(self, recs: std::ops::Range<u64>, mut f: impl FnMut(u64)) {
         let n = self.n as u64;
         if recs.is_empty() {
             return;

@@ -1,9 +1,10 @@
 //! The σ a replay keeps ([`super::ExactSigma`]): every record's, as one
-//! array, or only those of the records asked for, as (record, σ) pairs,
-//! so that the report's σ map (8 samples of each pixel) costs memory in
+//! array, or only those of the records asked for — one slot each where
+//! the dump's order tells which they are, else (record, σ) pairs — so
+//! that the report's σ map (8 samples of each pixel) costs memory in
 //! proportion to its share of the dump rather than to the whole dump.
 
-use super::ExactSigma;
+use super::{ExactSigma, Strata};
 
 /// The σ that decided each record a replay was asked for.
 ///
@@ -27,6 +28,9 @@ pub enum Sigmas {
     Dense(Vec<f64>),
     /// (record, σ) of the records asked for.
     Sparse(Vec<(u64, f64)>),
+    /// One σ per record the strata pick, at [`Strata::slot`]; NaN where
+    /// none was kept. Half the pairs' memory.
+    Strata(Strata, Vec<f64>),
 }
 
 impl Sigmas {
@@ -35,7 +39,8 @@ impl Sigmas {
     pub fn new(exact: ExactSigma, records: usize) -> Sigmas {
         match exact {
             ExactSigma::All => Sigmas::Dense(vec![f64::NAN; records]),
-            _ => Sigmas::Sparse(Vec::new()),
+            ExactSigma::Strata(s) => Sigmas::Strata(s, vec![f64::NAN; s.slots(records)]),
+            ExactSigma::None | ExactSigma::OneIn(_) => Sigmas::Sparse(Vec::new()),
         }
     }
 
@@ -45,6 +50,7 @@ impl Sigmas {
         match self {
             Sigmas::Dense(v) => v[rec] = sigma,
             Sigmas::Sparse(v) => v.push((rec as u64, sigma)),
+            Sigmas::Strata(s, v) => v[s.slot(rec as u64)] = sigma,
         }
     }
 
@@ -72,6 +78,23 @@ impl Sigmas {
             Sigmas::Sparse(v) => v
                 .binary_search_by_key(&(rec as u64), |&(r, _)| r)
                 .map_or(f64::NAN, |i| v[i].1),
+            Sigmas::Strata(s, v) => match s.wants(rec as u64) {
+                true => v[s.slot(rec as u64)],
+                false => f64::NAN,
+            },
+        }
+    }
+
+    /// Calls `f` with (record, σ) in record order, as [`Sigmas::kept`]
+    /// gives them, without testing every record where the strata tell
+    /// which are kept.
+    pub fn for_each_kept(&self, mut f: impl FnMut(usize, f64)) {
+        match self {
+            Sigmas::Strata(s, v) => {
+                let records = v.len() as u64 / s.per_pixel() * s.spp;
+                s.for_each_wanted(0..records, |rec| f(rec as usize, v[s.slot(rec)]));
+            }
+            _ => self.kept().for_each(|(rec, s)| f(rec, s)),
         }
     }
 
@@ -80,15 +103,22 @@ impl Sigmas {
         match self {
             Sigmas::Dense(v) => Box::new(v.iter().copied().enumerate()),
             Sigmas::Sparse(v) => Box::new(v.iter().map(|&(r, s)| (r as usize, s))),
+            Sigmas::Strata(s, v) => {
+                let records = v.len() as u64 / s.per_pixel() * s.spp;
+                let s = *s;
+                Box::new(
+                    (0..records)
+                        .filter(move |&rec| s.wants(rec))
+                        .map(move |rec| (rec as usize, v[s.slot(rec)])),
+                )
+            }
         }
     }
 
     /// One σ per record of `records`, NaN where none was kept.
     pub fn to_dense(&self, records: usize) -> Vec<f64> {
         let mut out = vec![f64::NAN; records];
-        for (rec, s) in self.kept() {
-            out[rec] = s;
-        }
+        self.for_each_kept(|rec, s| out[rec] = s);
         out
     }
 }
@@ -115,5 +145,45 @@ mod tests {
             assert_eq!(sparse.get(rec).to_bits(), dense.get(rec).to_bits());
         }
         assert_eq!(sparse.kept().count(), 3);
+    }
+
+    /// Slots give what pairs give, for both declared orders, frames and a
+    /// share that does not divide spp: every picked record has its own
+    /// slot, read back in record order, later writes winning.
+    #[test]
+    fn strata_slots_read_like_pairs() {
+        use crate::dump::Order;
+        use crate::synth::SynthParams;
+        for order in [Order::PixelMajor, Order::PassMajor] {
+            let h = SynthParams {
+                width: 5,
+                height: 3,
+                frames: 2,
+                spp: 11,
+                order,
+                ..SynthParams::default()
+            }
+            .header();
+            let n = h.sample_count as usize;
+            let exact = ExactSigma::Strata(Strata::new(&h, 4).unwrap());
+            let mut slots = Sigmas::new(exact, n);
+            let mut pairs = Sigmas::Sparse(Vec::new());
+            for (k, rec) in (0..n).chain((0..n).step_by(3)).enumerate() {
+                if exact.wants(rec) {
+                    slots.set(rec, k as f64);
+                    pairs.set(rec, k as f64);
+                }
+            }
+            slots.finish();
+            pairs.finish();
+            let bits = |s: &Sigmas| s.kept().map(|(r, v)| (r, v.to_bits())).collect::<Vec<_>>();
+            assert_eq!(bits(&slots), bits(&pairs), "{order}");
+            let mut each = Vec::new();
+            slots.for_each_kept(|r, v| each.push((r, v.to_bits())));
+            assert_eq!(each, bits(&pairs));
+            for rec in 0..n {
+                assert_eq!(slots.get(rec).to_bits(), pairs.get(rec).to_bits());
+            }
+        }
     }
 }

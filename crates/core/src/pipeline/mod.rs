@@ -320,8 +320,12 @@ pub fn run(
             },
         )
     });
-    let (result, white) = main?;
+    let (mut result, white) = main?;
     options.progress.finish();
+    release_freed_memory();
+    // The exact σ are read once, by the σ map, and dropped as soon as it
+    // is made (at 8 a pixel they weigh more than five images).
+    let sigmas = result.sigma.take();
     let t = Instant::now();
     let replay_seconds = result.streaming_seconds + result.final_seconds;
     let accepted = |i: usize| Decision::accepted(result.decisions[i]);
@@ -355,10 +359,7 @@ pub fn run(
                             &white_only,
                         )
                     },
-                    || {
-                        let sigma = result.sigma.as_ref();
-                        sigma.map(|s| density::sigma_map(records, header, s))
-                    },
+                    || sigmas.map(|s| density::sigma_map(records, header, &s)),
                 )
             },
         )
@@ -400,6 +401,18 @@ pub fn run(
         reconstruct_seconds: t.elapsed().as_secs_f64(),
         warnings,
     })
+}
+
+/// Gives the replay's freed buffers back to the system before the images
+/// are made: glibc keeps freed blocks below its mmap threshold (up to
+/// 32 MB) in its arenas, which would otherwise count again at the run's
+/// peak.
+fn release_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only returns unused memory of the allocator.
+    unsafe {
+        libc::malloc_trim(0);
+    }
 }
 
 /// `wanted`'s images in parallel, after the work they share (each is

@@ -190,16 +190,19 @@ pub fn denoise(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool) -> 
         .collect();
     // What the test reads of each pixel, made once: s²/n would otherwise
     // be divided out again for each of the (2R + 1)² pixels around it.
-    let tests: Vec<Test> = stats.iter().map(Test::of).collect();
+    // The tests take the statistics' place (an in-place collect), the
+    // means moved out first.
+    let means: Vec<[f64; 3]> = stats.iter().map(|s| s.mean).collect();
+    let tests: Vec<Test> = stats.into_iter().map(|s| Test::of(&s)).collect();
     let limits = spread_limits(&tests, w, ht);
     let mut img = Image::for_header(h);
     img.data.par_iter_mut().enumerate().for_each(|(px, out)| {
-        let p = &stats[px];
+        let p = &tests[px];
         if p.n == 0 {
             return;
         }
         if p.n < 2 {
-            *out = p.mean;
+            *out = means[px];
             return;
         }
         let (frame, i) = (px / (w * ht), px % (w * ht));
@@ -221,9 +224,8 @@ pub fn denoise(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool) -> 
                     (tp.y_mean[c] - tq.y_mean[c]).abs() <= crit * (tp.se2[c] + tq.se2[c]).sqrt()
                 });
                 if same {
-                    let q = &stats[q_px];
-                    let wq = wy * spatial[nx.abs_diff(x)] * q.n as f64;
-                    for (s, m) in sum.iter_mut().zip(q.mean) {
+                    let wq = wy * spatial[nx.abs_diff(x)] * tq.n as f64;
+                    for (s, m) in sum.iter_mut().zip(means[q_px]) {
                         *s += wq * m;
                     }
                     weight += wq;
