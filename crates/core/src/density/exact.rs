@@ -95,7 +95,7 @@ pub struct Strata {
     n: u32,
     /// Pixels of a frame.
     pixels: u64,
-    pub(super) spp: u64,
+    spp: u64,
     pass_major: bool,
 }
 
@@ -141,7 +141,7 @@ impl Strata {
     }
 
     /// The most samples a pixel has picked, ⌈spp / n⌉.
-    pub(super) fn per_pixel(self) -> u64 {
+    fn per_pixel(self) -> u64 {
         self.spp.div_ceil(self.n as u64)
     }
 
@@ -149,6 +149,11 @@ impl Strata {
     /// pixel (a pixel with ⌊spp / n⌋ leaves its last one empty).
     pub(super) fn slots(self, records: usize) -> usize {
         (records as u64 / self.spp * self.per_pixel()) as usize
+    }
+
+    /// The records behind `slots` slots ([`Strata::slots`]'s inverse).
+    pub(super) fn records(self, slots: usize) -> u64 {
+        slots as u64 / self.per_pixel() * self.spp
     }
 
     /// The slot of a picked record: its pixel's, then its rank among the

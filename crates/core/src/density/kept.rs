@@ -91,8 +91,7 @@ impl Sigmas {
     pub fn for_each_kept(&self, mut f: impl FnMut(usize, f64)) {
         match self {
             Sigmas::Strata(s, v) => {
-                let records = v.len() as u64 / s.per_pixel() * s.spp;
-                s.for_each_wanted(0..records, |rec| f(rec as usize, v[s.slot(rec)]));
+                s.for_each_wanted(0..s.records(v.len()), |rec| f(rec as usize, v[s.slot(rec)]));
             }
             _ => self.kept().for_each(|(rec, s)| f(rec, s)),
         }
@@ -104,10 +103,9 @@ impl Sigmas {
             Sigmas::Dense(v) => Box::new(v.iter().copied().enumerate()),
             Sigmas::Sparse(v) => Box::new(v.iter().map(|&(r, s)| (r as usize, s))),
             Sigmas::Strata(s, v) => {
-                let records = v.len() as u64 / s.per_pixel() * s.spp;
                 let s = *s;
                 Box::new(
-                    (0..records)
+                    (0..s.records(v.len()))
                         .filter(move |&rec| s.wants(rec))
                         .map(move |rec| (rec as usize, v[s.slot(rec)])),
                 )

@@ -354,7 +354,7 @@ mod tests {
     fn tens(w: usize, h: usize, frames: usize) -> Interval {
         Interval {
             centre: film(w, h, frames, 10.0),
-            half_width: film(w, h, frames, 2.0 * 1.0),
+            half_width: film(w, h, frames, 2.0),
             count: vec![4; w * h * frames],
             own_se: film(w, h, frames, 5.0),
             z: 2.0,

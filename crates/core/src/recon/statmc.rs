@@ -197,18 +197,17 @@ pub fn denoise(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool) -> 
     let limits = spread_limits(&tests, w, ht);
     let mut img = Image::for_header(h);
     img.data.par_iter_mut().enumerate().for_each(|(px, out)| {
-        let p = &tests[px];
-        if p.n == 0 {
+        let (tp, limit) = (&tests[px], limits[px]);
+        if tp.n == 0 {
             return;
         }
-        if p.n < 2 {
+        if tp.n < 2 {
             *out = means[px];
             return;
         }
         let (frame, i) = (px / (w * ht), px % (w * ht));
         let (x, y) = (i % w, i / w);
         let base = frame * w * ht;
-        let (tp, limit) = (&tests[px], limits[px]);
         let (mut sum, mut weight) = ([0.0f64; 3], 0.0f64);
         for ny in y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(ht) {
             let wy = spatial[ny.abs_diff(y)];
