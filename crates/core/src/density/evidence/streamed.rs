@@ -24,6 +24,10 @@ const JOBS_PER_THREAD: usize = 2;
 /// until it fits.
 const MAX_CELLS: usize = 1 << 20;
 
+/// Relative slack of a query's reach in [`QueryCells`]: rounding moves a
+/// coordinate by about 10⁻¹⁶ of its size.
+const REACH_SLACK: f64 = 1e-9;
+
 pub(super) fn against_all<const D: usize>(
     records: &[Record],
     header: &Header,
@@ -178,14 +182,17 @@ impl QueryCells {
             lists: vec![Vec::new(); dims.iter().product()],
         };
         for (q, query) in queries.iter().enumerate() {
-            // One cell more on each side than the reach covers: a point in
-            // any other cell is farther than the reach along some axis.
+            // The cells the reach covers, its ends widened by a slack far
+            // above the rounding of the square root, of these sums and of
+            // a distance: a point in any other cell is farther than the
+            // reach along some axis (`index` is monotone).
             let reach = query.reach2.sqrt();
             let (mut lo, mut hi) = ([0usize; 4], [0usize; 4]);
             for (a, &j) in cells.coords.iter().enumerate() {
                 let v = query.p[j] as f64;
-                lo[a] = cells.index(v - reach, a).saturating_sub(1);
-                hi[a] = (cells.index(v + reach, a) + 1).min(dims[a] - 1);
+                let slack = REACH_SLACK * (1.0 + v.abs() + reach);
+                lo[a] = cells.index(v - reach - slack, a);
+                hi[a] = cells.index(v + reach + slack, a);
             }
             for w in lo[3]..=hi[3] {
                 for z in lo[2]..=hi[2] {
@@ -220,5 +227,77 @@ impl QueryCells {
         }
         let d = &self.dims;
         &self.lists[((c[3] * d[2] + c[2]) * d[1] + c[1]) * d[0] + c[0]]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every point within a query's reach (by the canonical distance) is
+    /// offered to it: points on the reach's surface along each axis, at
+    /// cell borders and at random inside, for reaches smaller and larger
+    /// than a cell, and beyond the colour span.
+    #[test]
+    fn a_point_within_the_reach_finds_its_query_in_its_cell() {
+        let mut state = 7u64;
+        let mut uniform = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let extent = [40.0, 30.0, 1.0];
+        let queries: Vec<Query<5>> = (0..300)
+            .map(|i| {
+                let p = [
+                    (uniform() * 40.0) as f32,
+                    (uniform() * 30.0) as f32,
+                    (uniform() * 4.0 - 1.0) as f32,
+                    (uniform() - 0.5) as f32,
+                    (uniform() - 0.5) as f32,
+                ];
+                let reach = [0.01, 0.5, 1.0, 2.7][i % 4] * (0.5 + uniform());
+                Query {
+                    rec: i,
+                    p,
+                    reach2: reach * reach,
+                }
+            })
+            .collect();
+        let cells = QueryCells::new(extent, 2, &queries);
+        let mut checked = 0;
+        for (q, query) in queries.iter().enumerate() {
+            let reach = query.reach2.sqrt();
+            let mut points = Vec::new();
+            for axis in 0..5 {
+                for sign in [-1.0, 1.0] {
+                    // On the surface, and just inside it in f32.
+                    for shrink in [1.0, 1.0 - 1e-6] {
+                        let mut p = query.p;
+                        p[axis] = (query.p[axis] as f64 + sign * reach * shrink) as f32;
+                        points.push(p);
+                    }
+                }
+            }
+            for _ in 0..50 {
+                let mut p = query.p;
+                for c in p.iter_mut() {
+                    *c = (*c as f64 + (uniform() * 2.0 - 1.0) * reach / 2.2) as f32;
+                }
+                points.push(p);
+            }
+            for p in points {
+                if dist2(&p, &query.p) <= query.reach2 {
+                    checked += 1;
+                    assert!(
+                        cells.at(&p).contains(&(q as u32)),
+                        "query {q} at {:?}, reach {reach}: {p:?} not offered",
+                        query.p
+                    );
+                }
+            }
+        }
+        assert!(checked > 300 * 50, "{checked}");
     }
 }
