@@ -11,7 +11,7 @@ use crate::density::index::NeighbourIndex;
 use crate::density::index::grid::Grid;
 use crate::density::sigma::{Goal, KBest};
 use crate::density::{ExactSigma, FilterResult};
-use crate::dump::{Header, Record, Validity};
+use crate::dump::{Header, Order, Record, Validity};
 use crate::joint::{JointSpace, dist2};
 use crate::par::prelude::*;
 
@@ -23,6 +23,10 @@ const JOBS_PER_THREAD: usize = 2;
 /// Upper limit on the cells of the grid of queries; the side doubles
 /// until it fits.
 const MAX_CELLS: usize = 1 << 20;
+
+/// Samples of a query's pixel on either side of it in the dump that bound
+/// its reach ([`PixelMates`]): a whole pixel at 64 spp.
+const MATES_PER_SIDE: usize = 32;
 
 /// Relative slack of a query's reach in [`QueryCells`]: rounding moves a
 /// coordinate by about 10⁻¹⁶ of its size.
@@ -56,16 +60,22 @@ pub(super) fn against_all<const D: usize>(
     // itself, so its k nearest among all lie within its k-th nearest
     // distance in T. A query that only decides needs no point farther
     // than k: k neighbours closer than that are its k nearest, and fewer
-    // reject it (σ ≥ 1).
+    // reject it (σ ≥ 1). Any k other samples bound the reach too: those
+    // of the query's own pixel are most often far nearer than T's, for
+    // a query whose σ is wanted (an ordinary sample, most of them).
+    let mates = PixelMates::new(records, header, space);
     let queries: Vec<Query<D>> = asked
         .par_iter()
         .map_init(
-            || (KBest::new(k), Default::default()),
-            |(kb, scratch), &(rec, id)| {
+            || (KBest::new(k), KBest::new(k), Default::default()),
+            |(kb, near, scratch), &(rec, id)| {
                 let p = *t_index.point(id);
                 t_index.search(&p, Some(id), Goal::Exact, kb, scratch);
                 let mut reach2 = kb.worst2();
-                if !exact.wants(rec) {
+                if exact.wants(rec) {
+                    mates.nearest(rec, &p, near);
+                    reach2 = reach2.min(near.worst2());
+                } else {
                     reach2 = reach2.min((k * k) as f64);
                 }
                 Query { rec, p, reach2 }
@@ -120,6 +130,51 @@ pub(super) fn against_all<const D: usize>(
         .collect();
     for (query, &sigma) in queries.iter().zip(&verdicts) {
         super::record(result, exact, query.rec, sigma < 1.0, Some(sigma));
+    }
+}
+
+/// The samples the dump's declared order puts in a record's pixel: the
+/// records a pass apart in pass-major order, the adjacent ones otherwise.
+/// The order only makes them near; any valid samples bound a reach.
+struct PixelMates<'a> {
+    records: &'a [Record],
+    header: &'a Header,
+    space: &'a JointSpace,
+    /// Records between two samples of one pixel.
+    stride: usize,
+    /// Mates looked at on each side of a record.
+    reach: usize,
+}
+
+impl<'a> PixelMates<'a> {
+    fn new(records: &'a [Record], header: &'a Header, space: &'a JointSpace) -> Self {
+        let stride = match header.order {
+            Order::PassMajor => header.pixels().max(1),
+            Order::PixelMajor | Order::Unspecified => 1,
+        };
+        PixelMates {
+            records,
+            header,
+            space,
+            stride,
+            reach: (header.spp as usize).clamp(1, MATES_PER_SIDE),
+        }
+    }
+
+    /// Sets `kb` to the k nearest to `p`, record `rec`'s point, among its
+    /// valid mates.
+    fn nearest<const D: usize>(&self, rec: usize, p: &[f32; D], kb: &mut KBest) {
+        kb.clear();
+        let below = (1..=self.reach).filter_map(|j| rec.checked_sub(j * self.stride));
+        let above = (1..=self.reach).map(|j| rec + j * self.stride);
+        for m in below.chain(above) {
+            match self.records.get(m) {
+                Some(r) if r.validity(self.header) == Validity::Valid => {
+                    kb.push(dist2(&self.space.point::<D>(r), p), u32::MAX)
+                }
+                _ => {}
+            }
+        }
     }
 }
 
