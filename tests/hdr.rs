@@ -180,7 +180,13 @@ fn the_final_pass_against_all_agrees_with_the_plain_oracle() {
     for (seed, animated) in [(1u64, false), (2, true), (3, false)] {
         let mut rng = Rng(seed);
         let frames = if animated { 3 } else { 1 };
-        let h = header(9, 7, frames);
+        // A declared spp: the streamed pass bounds a wanted σ's reach by
+        // up to 14 neighbouring records on either side (any samples bound
+        // it; these are at random places).
+        let h = Header {
+            spp: 14,
+            ..header(9, 7, frames)
+        };
         // One record in 50 invalid (off the film, or a NaN colour): F6a's
         // grid holds only the valid ones, and ids must still name them.
         let recs: Vec<Record> = (0..900)

@@ -24,8 +24,9 @@ const JOBS_PER_THREAD: usize = 2;
 /// until it fits.
 const MAX_CELLS: usize = 1 << 20;
 
-/// Samples of a query's pixel on either side of it in the dump that bound
-/// its reach ([`PixelMates`]): a whole pixel at 64 spp.
+/// Samples near a query in the dump's order, on either side of it, that
+/// bound its reach ([`PixelMates`]): up to 64 others, most of a 64-spp
+/// pixel.
 const MATES_PER_SIDE: usize = 32;
 
 /// Relative slack of a query's reach in [`QueryCells`]: rounding moves a
@@ -62,7 +63,9 @@ pub(super) fn against_all<const D: usize>(
     // than k: k neighbours closer than that are its k nearest, and fewer
     // reject it (σ ≥ 1). Any k other samples bound the reach too: those
     // of the query's own pixel are most often far nearer than T's, for
-    // a query whose σ is wanted (an ordinary sample, most of them).
+    // a query whose σ is wanted (an ordinary sample, most of them); a
+    // query that only decides is an isolated sample, no nearer its
+    // pixel's samples (docs/BENCHMARKS.md).
     let mates = PixelMates::new(records, header, space);
     let queries: Vec<Query<D>> = asked
         .par_iter()
@@ -238,9 +241,10 @@ impl QueryCells {
         };
         for (q, query) in queries.iter().enumerate() {
             // The cells the reach covers, its ends widened by a slack far
-            // above the rounding of the square root, of these sums and of
-            // a distance: a point in any other cell is farther than the
-            // reach along some axis (`index` is monotone).
+            // above the rounding of the square root, of v ± reach and of
+            // `dist2`: a point with dist2 ≤ reach2 lies within the ends on
+            // every axis, and `index` never decreases, so its cell is
+            // listed.
             let reach = query.reach2.sqrt();
             let (mut lo, mut hi) = ([0usize; 4], [0usize; 4]);
             for (a, &j) in cells.coords.iter().enumerate() {
@@ -290,9 +294,9 @@ mod tests {
     use super::*;
 
     /// Every point within a query's reach (by the canonical distance) is
-    /// offered to it: points on the reach's surface along each axis, at
-    /// cell borders and at random inside, for reaches smaller and larger
-    /// than a cell, and beyond the colour span.
+    /// offered to it: points on the reach's surface along each axis, on
+    /// cell borders and at random inside, for reaches from none to
+    /// unbounded, smaller and larger than a cell.
     #[test]
     fn a_point_within_the_reach_finds_its_query_in_its_cell() {
         let mut state = 7u64;
@@ -312,7 +316,11 @@ mod tests {
                     (uniform() - 0.5) as f32,
                     (uniform() - 0.5) as f32,
                 ];
-                let reach = [0.01, 0.5, 1.0, 2.7][i % 4] * (0.5 + uniform());
+                let reach = match i % 6 {
+                    4 => 0.0,
+                    5 => f64::INFINITY,
+                    j => [0.01, 0.5, 1.0, 2.7][j] * (0.5 + uniform()),
+                };
                 Query {
                     rec: i,
                     p,
@@ -338,9 +346,15 @@ mod tests {
             for _ in 0..50 {
                 let mut p = query.p;
                 for c in p.iter_mut() {
-                    *c = (*c as f64 + (uniform() * 2.0 - 1.0) * reach / 2.2) as f32;
+                    let r = reach.min(50.0);
+                    *c = (*c as f64 + (uniform() * 2.0 - 1.0) * r / 2.2) as f32;
                 }
                 points.push(p);
+                // The cell borders nearest it (the side is 1 here).
+                let mut b = query.p;
+                b[0] = b[0].round();
+                b[1] = b[1].floor();
+                points.push(b);
             }
             for p in points {
                 if dist2(&p, &query.p) <= query.reach2 {
