@@ -136,9 +136,10 @@ pub(super) fn against_all<const D: usize>(
     }
 }
 
-/// The samples the dump's declared order puts in a record's pixel: the
-/// records a pass apart in pass-major order, the adjacent ones otherwise.
-/// The order only makes them near; any valid samples bound a reach.
+/// The records near a record in the dump's declared order: a pass apart
+/// in pass-major order (its pixel's samples), adjacent otherwise (its
+/// pixel's and, past them, its neighbours'). The order only makes them
+/// near; any valid samples bound a reach.
 struct PixelMates<'a> {
     records: &'a [Record],
     header: &'a Header,
