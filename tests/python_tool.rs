@@ -1,7 +1,9 @@
-//! tools/pds.py reads what the library writes and writes what it reads.
+//! tools/pds.py reads what the library writes and writes what it reads,
+//! and replaces nothing but a dump.
 
 mod common;
 
+use std::path::Path;
 use std::process::Command;
 
 use common::*;
@@ -40,4 +42,90 @@ fn the_python_module_round_trips_dumps_with_the_library() {
     assert_eq!(d.header(), &h);
     // Byte for byte the same file as the library's writer.
     assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+}
+
+/// Runs `script` in python3 with `tools/` on its path and `args` as
+/// `sys.argv[1:]`; its stdout, after asserting it succeeded. An alarm ends
+/// it if a check blocks (on a FIFO, say) instead of refusing.
+fn python(script: &str, args: &[&Path]) -> String {
+    let prelude = "import signal, sys; signal.alarm(60); sys.path.insert(0, 'tools')\n";
+    let o = Command::new("python3")
+        .arg("-c")
+        .arg(format!("{prelude}{script}"))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8(o.stdout).unwrap()
+}
+
+fn mkfifo(path: &Path) {
+    let ok = Command::new("mkfifo").arg(path).status().unwrap().success();
+    assert!(ok, "mkfifo");
+}
+
+#[test]
+fn the_python_writer_replaces_a_previous_dump_and_nothing_else() {
+    if !python_with_numpy() {
+        common::skipped("python3 with numpy is not installed (.ci/run installs it)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let notes = dir.path().join("notes.pds");
+    std::fs::write(&notes, b"keep me\n").unwrap();
+    let folder = dir.path().join("folder.pds");
+    std::fs::create_dir(&folder).unwrap();
+    let fifo = dir.path().join("pipe.pds");
+    mkfifo(&fifo);
+    let refused = python(
+        "import numpy as np, pds\n\
+         for path in sys.argv[1:]:\n\
+         \x20   try:\n\
+         \x20       pds.write(path, np.zeros((4, 6)), width=2, height=2)\n\
+         \x20   except pds.RefusedError as e:\n\
+         \x20       print(e)\n\
+         \x20   else:\n\
+         \x20       print(path, 'written')\n",
+        &[&notes, &folder, &fifo],
+    );
+    let lines: Vec<&str> = refused.lines().collect();
+    assert_eq!(lines.len(), 3, "{refused}");
+    for (line, (path, what)) in lines.iter().zip([
+        (&notes, "is not a dump"),
+        (&folder, "is a directory"),
+        (&fifo, "is a FIFO"),
+    ]) {
+        assert!(
+            line.starts_with(&format!("{}: ", path.display())) && line.contains(what),
+            "{line}"
+        );
+    }
+    assert_eq!(std::fs::read(&notes).unwrap(), b"keep me\n");
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names.len(), 3, "a temporary was left: {names:?}");
+
+    // A previous dump, even the library's, is replaced.
+    let h = header(2, 2, 1);
+    let old = write_dump(
+        dir.path(),
+        "old.pds",
+        &h,
+        &[Record::new(0.5, 0.5, 0.0, [1.0; 3])],
+    );
+    python(
+        "import numpy as np, pds\n\
+         pds.write(sys.argv[1], np.full((4, 6), 0.25), width=2, height=2)\n",
+        &[&old],
+    );
+    let d = DumpReader::open(&old).unwrap();
+    assert_eq!(d.header().sample_count, 4);
+    assert!(d.records().iter().all(|r| r.rgb() == [0.25; 3]));
 }

@@ -10,10 +10,16 @@ x, y, t, r, g, b. See docs/format.md for the fields.
     rec["r"].max()
     pds.write("out.pds", rec, width=hdr["width"], height=hdr["height"])
 
+The writers replace a file only if it is a previous dump (or empty): any
+other file, a folder, a FIFO or a link at the path is refused with
+RefusedError, and nothing is written.
+
 Run `python3 tools/pds.py FILE` to print a dump's header.
 """
 
+import errno
 import os
+import stat
 import struct
 import sys
 
@@ -24,6 +30,50 @@ VERSION = 1
 HEADER_LEN_MAX = 65536
 RECORD = np.dtype([(c, "<f4") for c in ("x", "y", "t", "r", "g", "b")])
 ORDERS = {"unspecified": 0, "pixel": 1, "pass": 2}
+
+
+class RefusedError(FileExistsError):
+    """The path holds something a writer must not replace (its `filename`,
+    and `strerror` says what)."""
+
+    def __str__(self):
+        return f"{self.filename}: {self.strerror}"
+
+
+def _kind(mode):
+    """What a file that is not a regular file is, for a refusal."""
+    for test, name in ((stat.S_ISLNK, "a symbolic link"), (stat.S_ISDIR, "a directory"),
+                       (stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"),
+                       (stat.S_ISCHR, "a device"), (stat.S_ISBLK, "a device")):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def refusal(path, magic=MAGIC, what="a dump"):
+    """Why `path` must not be replaced by `what`, a file starting with
+    `magic`, or None when it may: it does not exist, or is a regular file
+    that is empty or starts with `magic` (a previous output). Opens nothing
+    but a regular file, and that without blocking, so a FIFO cannot hang
+    it. A link is refused, as the Rust side does: the rename would replace
+    the link, not the file it names."""
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return None
+    if not stat.S_ISREG(mode):
+        return f"is {_kind(mode)}, not a regular file: refusing to replace it"
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOFOLLOW", 0))
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):  # swapped since the lstat
+            return "is not a regular file: refusing to replace it"
+        head = os.read(fd, len(magic))
+    finally:
+        os.close(fd)
+    if head and head != magic:
+        return (f"exists and is not {what}: refusing to replace it "
+                "(remove it or choose another name)")
+    return None
 
 
 def _data_offset(header_len):
@@ -97,7 +147,8 @@ class Presized:
 
     The records are a writable np.memmap of RECORD under a temporary name; the
     file appears under its own name only when the block ends without an
-    exception, and is removed otherwise."""
+    exception, and is removed otherwise. Entering the block raises
+    RefusedError, writing nothing, when `path` holds anything but a dump."""
 
     def __init__(self, path, sample_count, width, height, frames=1, spp=0,
                  order=0, scene="", seed=0, producer="tools/pds.py"):
@@ -112,6 +163,9 @@ class Presized:
         self._records = None
 
     def __enter__(self):
+        problem = refusal(self._path)
+        if problem:
+            raise RefusedError(errno.EEXIST, problem, self._path)
         with open(self._tmp, "wb") as f:
             f.write(self._prefix)
             f.truncate(len(self._prefix) + 24 * self._count)
@@ -157,7 +211,8 @@ def _as_records(values):
 def write(path, records, width, height, frames=1, spp=0, order=0, scene="",
           seed=0, producer="tools/pds.py"):
     """Writes records (anything convertible to RECORD, or an (n, 6) float
-    array) to path, under a temporary name renamed into place."""
+    array) to path, under a temporary name renamed into place; raises
+    RefusedError when path holds anything but a dump."""
     records = _as_records(records)
     with Presized(path, len(records), width, height, frames, spp, order, scene,
                   seed, producer) as out:
