@@ -386,3 +386,66 @@ fn bad_scenes_get_one_line_and_no_dump() {
         assert!(leftovers.is_empty(), "{leftovers:?}");
     }
 }
+
+#[test]
+fn an_output_that_is_the_scene_another_output_or_not_ours_is_refused_before_rendering() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let p = |name: &str| dir.path().join(name);
+    let xml = p("scene.xml");
+    std::fs::copy(scene("tests/data/mitsuba/checker.xml"), &xml).unwrap();
+    let before = std::fs::read(&xml).unwrap();
+    std::fs::write(p("notes.exr"), b"keep me").unwrap();
+    let (a, b, n, notes) = (p("a.pds"), p("b.pds"), p("n.exr"), p("notes.exr"));
+    // Each case's outputs, and the one its refusal names.
+    let cases: [(Vec<&str>, &Path); 4] = [
+        (vec!["-o", s(&xml)], &xml),
+        (
+            vec![
+                "-o",
+                s(&a),
+                "--reference-spp",
+                "1",
+                "--reference-out",
+                s(&a),
+            ],
+            &a,
+        ),
+        (
+            vec!["-o", s(&b), "--albedo-out", s(&n), "--normal-out", s(&n)],
+            &n,
+        ),
+        (
+            vec![
+                "-o",
+                s(&b),
+                "--reference-spp",
+                "1",
+                "--reference-out",
+                s(&notes),
+            ],
+            &notes,
+        ),
+    ];
+    for (outputs, named) in cases {
+        let mut args = vec![s(&xml), "--spp", "1", "--quiet"];
+        args.extend(outputs);
+        let o = tool(&py, "export.py", &args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
+        assert!(
+            err.starts_with(&format!("export.py: {}: ", named.display())),
+            "{args:?}: {err}"
+        );
+    }
+    assert_eq!(std::fs::read(&xml).unwrap(), before);
+    assert_eq!(std::fs::read(&notes).unwrap(), b"keep me");
+    // Refused before anything was rendered or written.
+    let mut left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["notes.exr", "scene.xml"]);
+}

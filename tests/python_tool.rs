@@ -1,5 +1,6 @@
 //! tools/pds.py reads what the library writes and writes what it reads,
-//! and replaces nothing but a dump.
+//! and replaces nothing but a dump; the exporters' shared output check
+//! (tools/exporter.py) refuses what would destroy a user's file.
 
 mod common;
 
@@ -128,4 +129,70 @@ fn the_python_writer_replaces_a_previous_dump_and_nothing_else() {
     let d = DumpReader::open(&old).unwrap();
     assert_eq!(d.header().sample_count, 4);
     assert!(d.records().iter().all(|r| r.rgb() == [0.25; 3]));
+}
+
+#[test]
+fn the_exporters_refuse_an_output_that_is_an_input_another_output_or_not_theirs() {
+    if !python_with_numpy() {
+        common::skipped("python3 with numpy is not installed (.ci/run installs it)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let p = |name: &str| dir.path().join(name);
+    std::fs::write(p("scene.xml"), b"<scene/>").unwrap();
+    std::os::unix::fs::symlink(p("scene.xml"), p("soft.pds")).unwrap();
+    std::fs::hard_link(p("scene.xml"), p("hard.pds")).unwrap();
+    // A dangling link to another output's name: one file once written.
+    std::os::unix::fs::symlink(p("a.exr"), p("alias.exr")).unwrap();
+    std::fs::write(p("notes.exr"), b"keep me").unwrap();
+    mkfifo(&p("pipe.exr"));
+    // Each case: the outputs (dump, then EXRs), and what the refusal says.
+    let cases: [(&[&str], &str); 7] = [
+        (&["scene.xml"], "scene.xml: is an input"),
+        (&["soft.pds"], "soft.pds: is the same file as the input"),
+        (&["hard.pds"], "hard.pds: is the same file as the input"),
+        (&["a.pds", "a.pds"], "a.pds: is named by two outputs"),
+        (
+            &["b.pds", "a.exr", "alias.exr"],
+            "alias.exr: is the same file as the output",
+        ),
+        (
+            &["b.pds", "notes.exr"],
+            "notes.exr: exists and is not an EXR",
+        ),
+        (&["b.pds", "pipe.exr"], "pipe.exr: is a FIFO"),
+    ];
+    let script = "from exporter import ExportError, check_outputs\n\
+         out = sys.argv[2:]\n\
+         try:\n\
+         \x20   check_outputs([sys.argv[1]], [(out[0], 'dump')] + [(p, 'exr') for p in out[1:]])\n\
+         except ExportError as e:\n\
+         \x20   print(e)\n";
+    for (outputs, expected) in cases {
+        let mut args = vec![p("scene.xml")];
+        args.extend(outputs.iter().map(|o| p(o)));
+        let refs: Vec<&Path> = args.iter().map(|a| a.as_path()).collect();
+        let said = python(script, &refs);
+        let want = format!("{}/{expected}", dir.path().display());
+        assert!(said.starts_with(&want), "{outputs:?}: {said:?}");
+    }
+    assert_eq!(std::fs::read(p("scene.xml")).unwrap(), b"<scene/>");
+    assert_eq!(std::fs::read(p("notes.exr")).unwrap(), b"keep me");
+
+    // The Cycles exporter refuses before it needs Blender.
+    let o = Command::new("python3")
+        .arg("tools/cycles/export.py")
+        .arg("builtin:caustic")
+        .arg("-o")
+        .arg(p("c.pds"))
+        .args(["--spp", "1", "--reference-spp", "1", "--reference-out"])
+        .arg(p("f.exr"))
+        .arg("--film-out")
+        .arg(p("f.exr"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains("f.exr: is named by two outputs"), "{err}");
 }

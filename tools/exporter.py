@@ -1,13 +1,62 @@
 """What the renderers' exporters (tools/mitsuba/export.py,
-tools/cycles/export.py) share: their one-line error and the parsers of
-their common flags."""
+tools/cycles/export.py) share: their one-line error, the check of their
+outputs and the parsers of their common flags."""
 import argparse
+import os
 import sys
 import time
+
+import pds
+
+# What an output file of each kind starts with: an existing file at an
+# output's name is replaced only if it does (a previous output of ours).
+KINDS = {"dump": (pds.MAGIC, "a dump"), "exr": (bytes([0x76, 0x2F, 0x31, 0x01]), "an EXR")}
 
 
 class ExportError(Exception):
     """A problem with the user's input, printed as one line."""
+
+
+def check_outputs(inputs, outputs):
+    """Refuses, before any work, an output that would destroy what the user
+    did not hand us: one that is an input or another output (by identity,
+    links resolved), or that exists and is not a previous output of its
+    kind (pds.refusal). `outputs` are (path, kind) pairs, kind "dump" or
+    "exr"; a path of None (a flag not given) is skipped, as is an input
+    that does not exist (it cannot be harmed)."""
+    given = {}
+    for p in inputs:
+        key = _identity(p)
+        if key[0] == "file":
+            given.setdefault(key, p)
+    taken = {}
+    for path, kind in outputs:
+        if path is None:
+            continue
+        key = _identity(path)
+        if key in given:
+            what = ("an input of this export" if given[key] == path
+                    else f"the same file as the input {given[key]}")
+            raise ExportError(f"{path}: is {what}: refusing to overwrite it")
+        if key in taken:
+            what = ("is named by two outputs" if taken[key] == path
+                    else f"is the same file as the output {taken[key]}")
+            raise ExportError(f"{path}: {what}: two outputs cannot share one file")
+        taken[key] = path
+        problem = pds.refusal(path, *KINDS[kind])
+        if problem:
+            raise ExportError(f"{path}: {problem}")
+
+
+def _identity(path):
+    """Device and inode when `path` names an existing file (links
+    followed); else the name it resolves to, so two new outputs of one
+    name, or a dangling link to the other's name, still compare equal."""
+    try:
+        st = os.stat(path)
+        return ("file", st.st_dev, st.st_ino)
+    except OSError:
+        return ("name", os.path.realpath(path))
 
 
 def parse_size(text):

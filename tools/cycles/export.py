@@ -44,7 +44,7 @@ sys.path.insert(0, os.path.join(HERE, ".."))
 sys.path.insert(0, HERE)
 import exrio  # noqa: E402
 import pds  # noqa: E402
-from exporter import ExportError, Progress, parse_size, positive  # noqa: E402
+from exporter import ExportError, Progress, check_outputs, parse_size, positive  # noqa: E402
 
 PROG = "export.py"
 AOV = "pds_dir"
@@ -516,29 +516,14 @@ def image_of(passes, name, matrix, h, w):
     return img.astype(np.float32).reshape(h, w, 3)
 
 
-def check_target(path, kind):
-    """Refuses to overwrite a file that is not a previous output of ours."""
-    if not os.path.exists(path):
-        return
-    if os.path.isdir(path):
-        raise ExportError(f"{path}: is a directory")
-    with open(path, "rb") as f:
-        head = f.read(8)
-    expected = pds.MAGIC if kind == "dump" else exrio.MAGIC.to_bytes(4, "little")
-    if not head.startswith(expected):
-        raise ExportError(f"{path}: exists and is not a {'dump' if kind == 'dump' else 'EXR'}; "
-                          "not overwriting it")
-
-
 def main(argv):
     args = arguments(argv)
     workdir = tempfile.mkdtemp(prefix="pds-cycles-")
     log = os.path.join(workdir, "blender.log")
     try:
-        check_target(args.out, "dump")
-        for p in (args.reference_out, args.albedo_out, args.normal_out, args.film_out):
-            if p:
-                check_target(p, "exr")
+        check_outputs([args.scene], [(args.out, "dump")] + [
+            (p, "exr") for p in (args.reference_out, args.albedo_out, args.normal_out,
+                                 args.film_out)])
         bpy, scene, name = load(args, log)
         check_camera(scene, args)
         space, matrix = colour_matrix(bpy, scene, args)

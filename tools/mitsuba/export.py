@@ -34,7 +34,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 import pds  # noqa: E402
-from exporter import ExportError, Progress, parse_size, positive  # noqa: E402
+from exporter import ExportError, Progress, check_outputs, parse_size, positive  # noqa: E402
 
 PROG = "export.py"
 SUPPORTED_INTEGRATORS = ("path", "volpath")
@@ -295,6 +295,9 @@ def write_exr(mi, image, path):
 def main(argv):
     args = arguments(argv)
     try:
+        # Before Mitsuba loads anything: a refusal costs nothing.
+        check_outputs([args.scene], [(args.out, "dump"), (args.reference_out, "exr"),
+                                     (args.albedo_out, "exr"), (args.normal_out, "exr")])
         mi, dr = load_mitsuba(args.variant, args.threads)
         scene = load_scene(mi, args.scene, args.size)
         sensor, film, integrator = check_scene(mi, args.scene, scene)
