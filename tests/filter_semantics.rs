@@ -465,7 +465,7 @@ fn results_do_not_depend_on_the_thread_count_batch_size_or_deferral() {
 }
 
 /// Seeds are cached by pixel on small films and by grid cell on large ones
-/// (pixels × k over 2^22): the same records give the same decisions either
+/// (pixels × k over 2^25): the same records give the same decisions either
 /// way, on any thread count. The large film holds them in its corner.
 #[test]
 fn decisions_do_not_depend_on_how_seeds_are_cached() {

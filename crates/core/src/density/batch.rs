@@ -129,7 +129,7 @@ impl<const D: usize> Batch<D> {
                         slot.p = space.point::<D>(rec);
                         slot.key = index.locality(&slot.p);
                         slot.seed_key = if seed_keys.by_pixel {
-                            // Fits: pixels × k ≤ 2^22.
+                            // Fits: pixels × k ≤ 2^25 (`SeedKeys`).
                             rec.pixel_index(header) as u32
                         } else {
                             slot.key

@@ -52,11 +52,14 @@ pub(super) struct SeedKeys {
 }
 
 impl SeedKeys {
-    /// At most 2^22 ids (16 MB) per worker by pixel; by cell, at most 16384
-    /// slots and 2^20 ids.
+    /// By pixel up to 2^25 ids (128 MB) a cache, which holds a 1080p
+    /// film's at k ≤ 16: by cell, a pass-major replay of that film was
+    /// 1.6× slower (docs/BENCHMARKS.md, "A production frame"). By cell, at
+    /// most 16384 slots and 2^20 ids. There are two caches: the parallel
+    /// workers' and the in-order pass's.
     pub(super) fn new(header: &Header, k: usize) -> SeedKeys {
         let pixels = header.pixels().saturating_mul(header.frames as usize);
-        if pixels.saturating_mul(k) <= 1 << 22 {
+        if pixels.saturating_mul(k) <= 1 << 25 {
             SeedKeys {
                 by_pixel: true,
                 slots: pixels.max(1),
@@ -252,13 +255,15 @@ mod tests {
         assert_eq!(ids, [5, 6]);
     }
 
-    /// Seeds go by pixel while every pixel's fit in 2^22 ids, else by cell.
+    /// Seeds go by pixel while every pixel's fit in 2^25 ids, else by cell.
     #[test]
     fn seeds_are_kept_by_pixel_when_the_film_is_small() {
         use crate::dump::{Header, Order};
         let keys = SeedKeys::new(&Header::still(256, 256, 64, Order::PassMajor), 50);
         assert_eq!((keys.by_pixel, keys.slots), (true, 65536));
-        let keys = SeedKeys::new(&Header::still(1920, 1080, 64, Order::PassMajor), 10);
+        let keys = SeedKeys::new(&Header::still(1920, 1080, 64, Order::PassMajor), 16);
+        assert_eq!((keys.by_pixel, keys.slots), (true, 1920 * 1080));
+        let keys = SeedKeys::new(&Header::still(3840, 2160, 64, Order::PassMajor), 10);
         assert!(!keys.by_pixel && keys.slots * 10 <= 1 << 20);
     }
 }
