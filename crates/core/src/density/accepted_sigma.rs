@@ -18,12 +18,16 @@ use super::{Decision, ExactSigma, Sigmas};
 use crate::dump::Record;
 use crate::joint::JointSpace;
 
-/// Searches per round at most: they are sorted by cell, so that the
-/// searches of one cell share a gathered block (at 8 a pixel, a round
-/// holds about 9 of each 3 × 3-pixel cell of a 512 × 512 film), and their
-/// memory (about 100 bytes each while the round is gathered) is bounded by
-/// it.
-const ROUND: usize = 1 << 18;
+/// Searches per round: they are sorted by cell, so that the searches of
+/// one cell share a gathered block. Half a search a pixel of the film
+/// (`pixels`) gives each 3 × 3-pixel cell about 4 a round at the report's
+/// 8 a pixel; at 2^18 a round a 1080p film's cells got about one, and its
+/// searches took 1.8× as long (docs/BENCHMARKS.md, "A production frame").
+/// At least 2^18, and at most 2^21, which bounds their memory (about 100
+/// bytes each while the round is gathered).
+fn round(pixels: usize) -> usize {
+    (pixels / 2).clamp(1 << 18, 1 << 21)
+}
 
 /// Records per parallel job of the gathering.
 const BLOCK: usize = 1 << 14;
@@ -52,13 +56,14 @@ pub(super) struct Accepted<'a> {
 impl Accepted<'_> {
     /// Sets, in `sigma`, the exact σ of every record `exact` wants that
     /// was accepted while streaming, against the points of `index` (the
-    /// final T) stored before it.
+    /// final T) stored before it, on a film of `pixels` pixels (all frames).
     pub(super) fn find_sigma<const D: usize, I: NeighbourIndex<D>>(
         &self,
         index: &I,
         sigma: &mut Sigmas,
+        pixels: usize,
     ) {
-        self.find_in_rounds(index, sigma, ROUND, BLOCK)
+        self.find_in_rounds(index, sigma, round(pixels), BLOCK)
     }
 
     /// [`Accepted::find_sigma`] in rounds of about `round` searches,
@@ -188,7 +193,7 @@ mod tests {
                     decisions: &plain.decisions,
                     exact,
                 };
-                for (round, block) in [(1 << 18, 1 << 14), (5, 3), (1, 1), (17, 64)] {
+                for (round, block) in [(round(h.pixels()), BLOCK), (5, 3), (1, 1), (17, 64)] {
                     let mut on_grid = Sigmas::new(exact, records.len());
                     run.find_in_rounds(&grid, &mut on_grid, round, block);
                     let mut on_tree = Sigmas::new(exact, records.len());
