@@ -22,6 +22,7 @@ import os
 import stat
 import struct
 import sys
+import tempfile
 
 import numpy as np
 
@@ -159,14 +160,15 @@ class Presized:
         prefix = MAGIC + struct.pack("<II", VERSION, len(body)) + body
         self._prefix = prefix + b"\0" * (_data_offset(len(body)) - len(prefix))
         self._path, self._count = path, sample_count
-        self._tmp = f"{path}.tmp-{os.getpid()}"
+        self._tmp = None
         self._records = None
 
     def __enter__(self):
         problem = refusal(self._path)
         if problem:
             raise RefusedError(errno.EEXIST, problem, self._path)
-        with open(self._tmp, "wb") as f:
+        fd, self._tmp = temp_beside(self._path)
+        with os.fdopen(fd, "wb") as f:
             f.write(self._prefix)
             f.truncate(len(self._prefix) + 24 * self._count)
         if self._count:
@@ -186,6 +188,19 @@ class Presized:
         elif os.path.exists(self._tmp):
             os.remove(self._tmp)
         return False
+
+
+def temp_beside(path, suffix=".tmp"):
+    """A new file, created exclusively beside `path` (so renaming it into
+    place is atomic), named `.NAME.XXXXXXXX` + suffix: a name no existing
+    file has, unlike one made from the process id. Returns (fd, name)."""
+    folder, name = os.path.split(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{name}.", suffix=suffix)
+    # mkstemp makes it private; an output gets an ordinary file's mode.
+    mask = os.umask(0)
+    os.umask(mask)
+    os.fchmod(fd, 0o666 & ~mask)
+    return fd, tmp
 
 
 class _RecordView:

@@ -13,8 +13,12 @@ and 32-bit floats, which this reads exactly; it refuses anything else
 
 import os
 import struct
+import sys
 
 import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+import pds  # noqa: E402
 
 MAGIC = 20000630
 FLOAT, HALF, UINT = 2, 1, 0
@@ -148,9 +152,9 @@ def write_rgb(path, image):
     for y in range(h):
         body += struct.pack("<ii", y, 12 * w)
         body += image[y, :, ::-1].T.tobytes()  # B, G, R: channels in name order
-    tmp = f"{path}.tmp-{os.getpid()}"
+    fd, tmp = pds.temp_beside(path)
     try:
-        with open(tmp, "wb") as f:
+        with os.fdopen(fd, "wb") as f:
             f.write(header + offsets.tobytes() + bytes(body))
         os.replace(tmp, path)
     finally:

@@ -283,7 +283,8 @@ def export_aux(mi, scene, args):
 
 
 def write_exr(mi, image, path):
-    tmp = f"{path}.tmp-{os.getpid()}.exr"
+    fd, tmp = pds.temp_beside(path, suffix=".tmp.exr")  # Mitsuba reads the format from the name
+    os.close(fd)
     try:
         mi.Bitmap(image, mi.Bitmap.PixelFormat.RGB).write(tmp)
         os.replace(tmp, path)
