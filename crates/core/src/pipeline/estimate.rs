@@ -202,8 +202,13 @@ impl<'s, 'a> Estimators<'s, 'a> {
         if wanted(Piece::Robust) || wanted(Piece::Mon) {
             self.shared.groups();
         }
+        // One piece a job: rayon would otherwise cut these few items into
+        // one run a thread, and two long pieces (the accepted samples'
+        // intervals and statmc, both a serial pass over the dump) would
+        // follow each other on one thread while the other idled.
         Piece::ALL
             .par_iter()
+            .with_max_len(1)
             .filter(|&&piece| wanted(piece))
             .for_each(|piece| match piece {
                 Piece::Robust => {
