@@ -12,8 +12,7 @@ use pathdensity::dump::{DumpReader, Record};
 
 #[test]
 fn the_python_module_round_trips_dumps_with_the_library() {
-    if !python_with_numpy() {
-        common::skipped("python3 with numpy is not installed (.ci/run installs it)");
+    if !numpy_or_skip() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -65,6 +64,15 @@ fn python(script: &str, args: &[&Path]) -> String {
     String::from_utf8(o.stdout).unwrap()
 }
 
+/// Whether python3 has numpy; says loudly that the test skips when not.
+fn numpy_or_skip() -> bool {
+    let found = python_with_numpy();
+    if !found {
+        common::skipped("python3 with numpy is not installed (.ci/run installs it)");
+    }
+    found
+}
+
 fn mkfifo(path: &Path) {
     let ok = Command::new("mkfifo").arg(path).status().unwrap().success();
     assert!(ok, "mkfifo");
@@ -72,8 +80,7 @@ fn mkfifo(path: &Path) {
 
 #[test]
 fn the_python_writer_replaces_a_previous_dump_and_nothing_else() {
-    if !python_with_numpy() {
-        common::skipped("python3 with numpy is not installed (.ci/run installs it)");
+    if !numpy_or_skip() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -133,8 +140,7 @@ fn the_python_writer_replaces_a_previous_dump_and_nothing_else() {
 
 #[test]
 fn the_exporters_refuse_an_output_that_is_an_input_another_output_or_not_theirs() {
-    if !python_with_numpy() {
-        common::skipped("python3 with numpy is not installed (.ci/run installs it)");
+    if !numpy_or_skip() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
