@@ -52,14 +52,17 @@ pub(super) struct SeedKeys {
 }
 
 impl SeedKeys {
-    /// By pixel up to 2^25 ids (128 MB) a cache, which holds a 1080p
-    /// film's at k ≤ 16: by cell, a pass-major replay of that film was
-    /// 1.6× slower (docs/BENCHMARKS.md, "A production frame"). By cell, at
-    /// most 16384 slots and 2^20 ids. There are two caches: the parallel
-    /// workers' and the in-order pass's.
+    /// By pixel where the dump comes back to its pixels (two samples a
+    /// pixel or more: a pixel's seeds serve its next sample) and the
+    /// cache holds up to 2^25 ids (128 MB), a 1080p film's at k ≤ 16: by
+    /// cell, a pass-major replay of that film was 1.6× slower
+    /// (docs/BENCHMARKS.md, "A production frame"). By cell, at most 16384
+    /// slots and 2^20 ids. There are two caches: the parallel workers' and
+    /// the in-order pass's.
     pub(super) fn new(header: &Header, k: usize) -> SeedKeys {
         let pixels = header.pixels().saturating_mul(header.frames as usize);
-        if pixels.saturating_mul(k) <= 1 << 25 {
+        let revisited = header.sample_count >= 2 * pixels as u64;
+        if revisited && pixels.saturating_mul(k) <= 1 << 25 {
             SeedKeys {
                 by_pixel: true,
                 slots: pixels.max(1),
@@ -255,15 +258,26 @@ mod tests {
         assert_eq!(ids, [5, 6]);
     }
 
-    /// Seeds go by pixel while every pixel's fit in 2^25 ids, else by cell.
+    /// Seeds go by pixel while every pixel's fit in 2^25 ids and the dump
+    /// has two samples a pixel, else by cell.
     #[test]
     fn seeds_are_kept_by_pixel_when_the_film_is_small() {
         use crate::dump::{Header, Order};
-        let keys = SeedKeys::new(&Header::still(256, 256, 64, Order::PassMajor), 50);
+        let film = |w: u32, h: u32, samples: u64| Header {
+            sample_count: samples,
+            ..Header::still(w, h, 64, Order::PassMajor)
+        };
+        let keys = SeedKeys::new(&film(256, 256, 256 * 256 * 64), 50);
         assert_eq!((keys.by_pixel, keys.slots), (true, 65536));
-        let keys = SeedKeys::new(&Header::still(1920, 1080, 64, Order::PassMajor), 16);
+        let keys = SeedKeys::new(&film(1920, 1080, 1920 * 1080 * 2), 16);
         assert_eq!((keys.by_pixel, keys.slots), (true, 1920 * 1080));
-        let keys = SeedKeys::new(&Header::still(3840, 2160, 64, Order::PassMajor), 10);
-        assert!(!keys.by_pixel && keys.slots * 10 <= 1 << 20);
+        for (few, k) in [
+            (film(3840, 2160, 3840 * 2160 * 64), 10),
+            (film(2048, 2048, 1000), 8),
+        ] {
+            let keys = SeedKeys::new(&few, k);
+            assert!(!keys.by_pixel && keys.slots * k <= 1 << 20);
+        }
+        assert!(!SeedKeys::new(&film(1920, 1080, 1920 * 1080 * 2 - 1), 8).by_pixel);
     }
 }
