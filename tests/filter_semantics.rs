@@ -465,8 +465,9 @@ fn results_do_not_depend_on_the_thread_count_batch_size_or_deferral() {
 }
 
 /// Seeds are cached by pixel on small films and by grid cell on large ones
-/// (pixels × k over 2^25): the same records give the same decisions either
-/// way, on any thread count. The large film holds them in its corner.
+/// (pixels × k over 2^25, or fewer than two samples a pixel: both hold for
+/// the large film here, which holds the records in its corner): the same
+/// records give the same decisions either way, on any thread count.
 #[test]
 fn decisions_do_not_depend_on_how_seeds_are_cached() {
     let p = small_pass_major();

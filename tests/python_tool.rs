@@ -4,6 +4,7 @@
 
 mod common;
 
+use std::os::unix::fs::PermissionsExt;
 use std::path::Path;
 use std::process::Command;
 
@@ -136,6 +137,37 @@ fn the_python_writer_replaces_a_previous_dump_and_nothing_else() {
     let d = DumpReader::open(&old).unwrap();
     assert_eq!(d.header().sample_count, 4);
     assert!(d.records().iter().all(|r| r.rgb() == [0.25; 3]));
+    // With an ordinary file's mode (what Rust's own write gives), not the
+    // private one of a temporary.
+    let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode(&old), mode(&notes));
+
+    // A link is refused even when it names a dump: the rename would
+    // replace the link, not the dump.
+    let link = dir.path().join("link.pds");
+    std::os::unix::fs::symlink(&old, &link).unwrap();
+    let said = python(
+        "import numpy as np, pds\n\
+         try:\n\
+         \x20   pds.write(sys.argv[1], np.zeros((4, 6)), width=2, height=2)\n\
+         except pds.RefusedError as e:\n\
+         \x20   print(e)\n",
+        &[&link],
+    );
+    assert!(said.starts_with(&format!("{}: ", link.display())), "{said}");
+    assert!(
+        std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+    assert!(
+        DumpReader::open(&old)
+            .unwrap()
+            .records()
+            .iter()
+            .all(|r| r.rgb() == [0.25; 3])
+    );
 }
 
 #[test]
@@ -153,7 +185,7 @@ fn the_exporters_refuse_an_output_that_is_an_input_another_output_or_not_theirs(
     std::fs::write(p("notes.exr"), b"keep me").unwrap();
     mkfifo(&p("pipe.exr"));
     // Each case: the outputs (dump, then EXRs), and what the refusal says.
-    let cases: [(&[&str], &str); 7] = [
+    let cases: [(&[&str], &str); 8] = [
         (&["scene.xml"], "scene.xml: is an input"),
         (&["soft.pds"], "soft.pds: is the same file as the input"),
         (&["hard.pds"], "hard.pds: is the same file as the input"),
@@ -167,6 +199,8 @@ fn the_exporters_refuse_an_output_that_is_an_input_another_output_or_not_theirs(
             "notes.exr: exists and is not an EXR",
         ),
         (&["b.pds", "pipe.exr"], "pipe.exr: is a FIFO"),
+        // Found before a render, not when writing after it.
+        (&["nodir/b.pds"], "nodir/b.pds: its folder"),
     ];
     let script = "from exporter import ExportError, check_outputs\n\
          out = sys.argv[2:]\n\

@@ -43,9 +43,20 @@ def check_outputs(inputs, outputs):
                     else f"is the same file as the output {taken[key]}")
             raise ExportError(f"{path}: {what}: two outputs cannot share one file")
         taken[key] = path
-        problem = pds.refusal(path, *KINDS[kind])
+        problem = pds.refusal(path, *KINDS[kind]) or _unwritable(path)
         if problem:
             raise ExportError(f"{path}: {problem}")
+
+
+def _unwritable(path):
+    """Why `path` cannot be written in its folder, checked now rather than
+    found after a render."""
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        return f"its folder {folder} does not exist"
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return f"its folder {folder} is not writable"
+    return None
 
 
 def _identity(path):

@@ -19,10 +19,10 @@ Run `python3 tools/pds.py FILE` to print a dump's header.
 
 import errno
 import os
+import secrets
 import stat
 import struct
 import sys
-import tempfile
 
 import numpy as np
 
@@ -168,14 +168,19 @@ class Presized:
         if problem:
             raise RefusedError(errno.EEXIST, problem, self._path)
         fd, self._tmp = temp_beside(self._path)
-        with os.fdopen(fd, "wb") as f:
-            f.write(self._prefix)
-            f.truncate(len(self._prefix) + 24 * self._count)
-        if self._count:
-            self._records = _RecordView(np.memmap(
-                self._tmp, RECORD, "r+", offset=len(self._prefix), shape=(self._count,)))
-        else:
-            self._records = _RecordView(np.zeros(0, RECORD))
+        try:
+            with os.fdopen(fd, "wb") as f:
+                f.write(self._prefix)
+                f.truncate(len(self._prefix) + 24 * self._count)
+            if self._count:
+                self._records = _RecordView(np.memmap(
+                    self._tmp, RECORD, "r+", offset=len(self._prefix), shape=(self._count,)))
+            else:
+                self._records = _RecordView(np.zeros(0, RECORD))
+        except BaseException:
+            # The block never runs, so its exit would not remove it.
+            os.remove(self._tmp)
+            raise
         return self._records
 
     def __exit__(self, kind, value, tb):
@@ -193,14 +198,20 @@ class Presized:
 def temp_beside(path, suffix=".tmp"):
     """A new file, created exclusively beside `path` (so renaming it into
     place is atomic), named `.NAME.XXXXXXXX` + suffix: a name no existing
-    file has, unlike one made from the process id. Returns (fd, name)."""
+    file has, unlike one made from the process id. Its mode is an
+    ordinary file's (0666 less the umask, which the kernel applies).
+    Returns (fd, name); an error names `path`."""
     folder, name = os.path.split(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{name}.", suffix=suffix)
-    # mkstemp makes it private; an output gets an ordinary file's mode.
-    mask = os.umask(0)
-    os.umask(mask)
-    os.fchmod(fd, 0o666 & ~mask)
-    return fd, tmp
+    flags = os.O_RDWR | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
+    for _ in range(100):
+        tmp = os.path.join(folder, f".{name}.{secrets.token_hex(4)}{suffix}")
+        try:
+            return os.open(tmp, flags, 0o666), tmp
+        except FileExistsError:
+            continue
+        except OSError as e:
+            raise OSError(e.errno, e.strerror, path) from None
+    raise FileExistsError(errno.EEXIST, "no free temporary name beside it", path)
 
 
 class _RecordView:

@@ -157,6 +157,11 @@ mod sequential {
                 let mut state = init();
                 self.map(move |x| f(&mut state, x))
             }
+
+            /// Items per job at most: one job here, so nothing to cut.
+            fn with_max_len(self, _max: usize) -> Self {
+                self
+            }
         }
 
         impl<I: Iterator> ParallelIterator for I {}

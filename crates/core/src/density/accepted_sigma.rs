@@ -138,6 +138,15 @@ impl Accepted<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Half a search a pixel, within 2^18 and 2^21.
+    #[test]
+    fn rounds_follow_the_film_within_their_bounds() {
+        assert_eq!(round(0), 1 << 18);
+        assert_eq!(round(960 * 540), 1 << 18);
+        assert_eq!(round(1920 * 1080), 1920 * 1080 / 2);
+        assert_eq!(round(1 << 26), 1 << 21);
+    }
     use crate::density::index::grid::Grid;
     use crate::density::index::kdtree::KdTree;
     use crate::density::{Strata, plain};

@@ -54,11 +54,11 @@ pub(super) struct SeedKeys {
 impl SeedKeys {
     /// By pixel where the dump comes back to its pixels (two samples a
     /// pixel or more: a pixel's seeds serve its next sample) and the
-    /// cache holds up to 2^25 ids (128 MB), a 1080p film's at k ≤ 16: by
-    /// cell, a pass-major replay of that film was 1.6× slower
-    /// (docs/BENCHMARKS.md, "A production frame"). By cell, at most 16384
-    /// slots and 2^20 ids. There are two caches: the parallel workers' and
-    /// the in-order pass's.
+    /// cache holds up to 2^25 ids (128 MB, and 4 bytes a pixel of keys),
+    /// a 1080p film's at k ≤ 16: by cell, a pass-major replay of that
+    /// film was 1.6× slower (docs/BENCHMARKS.md, "A production frame").
+    /// By cell, at most 16384 slots and 2^20 ids. There are two caches:
+    /// the parallel workers' and the in-order pass's.
     pub(super) fn new(header: &Header, k: usize) -> SeedKeys {
         let pixels = header.pixels().saturating_mul(header.frames as usize);
         let revisited = header.sample_count >= 2 * pixels as u64;
