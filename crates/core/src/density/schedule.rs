@@ -159,7 +159,7 @@ pub(super) fn replay<const D: usize, I: NeighbourIndex<D>>(
             decisions: &decisions,
             exact,
         };
-        let pixels = header.pixels() * header.frames.max(1) as usize;
+        let pixels = header.pixels() * header.frames as usize;
         accepted.find_sigma(&index, sigma, pixels);
     }
     let streaming_seconds = t0.elapsed().as_secs_f64();
