@@ -252,6 +252,45 @@ fn outputs_never_overwrite_inputs() {
     assert_eq!(bytes(&notes), b"mine");
 }
 
+/// `render --reference-out` replaces an EXR only if pathdensity wrote it: a
+/// user's own image at that name survives.
+#[test]
+fn render_replaces_only_exrs_of_ours() {
+    let dir = tempfile::tempdir().unwrap();
+    let render = |reference: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_render"))
+            .args(["--scene", "glossy-room", "--width", "4", "--height", "4"])
+            .args(["--spp", "1", "--reference-spp", "1", "-o"])
+            .arg(dir.path().join("d.pds"))
+            .arg("--reference-out")
+            .arg(reference)
+            .output()
+            .unwrap()
+    };
+    let ours = dir.path().join("ours.exr");
+    for _ in 0..2 {
+        let o = render(&ours);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    // The same file with its marker renamed: a valid EXR someone else wrote.
+    let mut foreign = bytes(&ours);
+    let at = foreign
+        .windows(12)
+        .position(|w| w == b"pathdensity\0")
+        .expect("our EXR carries the marker");
+    foreign[at..at + 11].copy_from_slice(b"othersoftwa");
+    let theirs = dir.path().join("theirs.exr");
+    std::fs::write(&theirs, &foreign).unwrap();
+    let o = render(&theirs);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("theirs.exr") && err.contains("not written by pathdensity"),
+        "{err}"
+    );
+    assert_eq!(bytes(&theirs), foreign);
+}
+
 #[test]
 fn special_files_never_block_nor_grow_memory() {
     let dir = tempfile::tempdir().unwrap();

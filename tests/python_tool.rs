@@ -183,9 +183,19 @@ fn the_exporters_refuse_an_output_that_is_an_input_another_output_or_not_theirs(
     // A dangling link to another output's name: one file once written.
     std::os::unix::fs::symlink(p("a.exr"), p("alias.exr")).unwrap();
     std::fs::write(p("notes.exr"), b"keep me").unwrap();
+    // A valid EXR that another program wrote (no `pathdensity` attribute),
+    // and one of ours, which may be replaced.
+    python(
+        "import numpy as np, exrio\n\
+         exrio.write_rgb(sys.argv[2], np.zeros((2, 2, 3)))\n\
+         exrio.WRITER_ATTRIBUTE = 'software'\n\
+         exrio.write_rgb(sys.argv[1], np.zeros((2, 2, 3)))\n",
+        &[&p("theirs.exr"), &p("ours.exr")],
+    );
+    let theirs = std::fs::read(p("theirs.exr")).unwrap();
     mkfifo(&p("pipe.exr"));
     // Each case: the outputs (dump, then EXRs), and what the refusal says.
-    let cases: [(&[&str], &str); 8] = [
+    let cases: [(&[&str], &str); 9] = [
         (&["scene.xml"], "scene.xml: is an input"),
         (&["soft.pds"], "soft.pds: is the same file as the input"),
         (&["hard.pds"], "hard.pds: is the same file as the input"),
@@ -197,6 +207,10 @@ fn the_exporters_refuse_an_output_that_is_an_input_another_output_or_not_theirs(
         (
             &["b.pds", "notes.exr"],
             "notes.exr: exists and is not an EXR",
+        ),
+        (
+            &["b.pds", "theirs.exr"],
+            "theirs.exr: exists and is not an EXR pathdensity wrote",
         ),
         (&["b.pds", "pipe.exr"], "pipe.exr: is a FIFO"),
         // Found before a render, not when writing after it.
@@ -218,6 +232,9 @@ fn the_exporters_refuse_an_output_that_is_an_input_another_output_or_not_theirs(
     }
     assert_eq!(std::fs::read(p("scene.xml")).unwrap(), b"<scene/>");
     assert_eq!(std::fs::read(p("notes.exr")).unwrap(), b"keep me");
+    assert_eq!(std::fs::read(p("theirs.exr")).unwrap(), theirs);
+    let said = python(script, &[&p("scene.xml"), &p("b.pds"), &p("ours.exr")]);
+    assert_eq!(said, "", "a previous EXR of ours is replaced");
 
     // The Cycles exporter refuses before it needs Blender.
     let o = Command::new("python3")

@@ -6,11 +6,12 @@ import os
 import sys
 import time
 
+import exrio
 import pds
 
-# What an output file of each kind starts with: an existing file at an
-# output's name is replaced only if it does (a previous output of ours).
-KINDS = {"dump": (pds.MAGIC, "a dump"), "exr": (bytes([0x76, 0x2F, 0x31, 0x01]), "an EXR")}
+# How a previous output of each kind is told apart: an existing file at an
+# output's name is replaced only if it is one.
+KINDS = {"dump": (pds.looks_like_dump, "a dump"), "exr": (exrio.written_by_us, "an EXR")}
 
 
 class ExportError(Exception):

@@ -51,13 +51,18 @@ def _kind(mode):
     return "not a regular file"
 
 
-def refusal(path, magic=MAGIC, what="a dump"):
-    """Why `path` must not be replaced by `what`, a file starting with
-    `magic`, or None when it may: it does not exist, or is a regular file
-    that is empty or starts with `magic` (a previous output). Opens nothing
-    but a regular file, and that without blocking, so a FIFO cannot hang
-    it. A link is refused, as the Rust side does: the rename would replace
-    the link, not the file it names."""
+def looks_like_dump(head):
+    """Whether `head`, the start of a file, starts like a dump."""
+    return head[:len(MAGIC)] == MAGIC
+
+
+def refusal(path, ours=looks_like_dump, what="a dump"):
+    """Why `path` must not be replaced by `what`, or None when it may: it
+    does not exist, or is a regular file that is empty or whose first 4 KiB
+    `ours` accepts (a previous output). Opens nothing but a regular file,
+    and that without blocking, so a FIFO cannot hang it. A link is refused,
+    as the Rust side does: the rename would replace the link, not the file
+    it names."""
     try:
         mode = os.lstat(path).st_mode
     except FileNotFoundError:
@@ -68,11 +73,11 @@ def refusal(path, magic=MAGIC, what="a dump"):
     try:
         if not stat.S_ISREG(os.fstat(fd).st_mode):  # swapped since the lstat
             return "is not a regular file: refusing to replace it"
-        head = os.read(fd, len(magic))
+        head = os.read(fd, 4096)
     finally:
         os.close(fd)
-    if head and head != magic:
-        return (f"exists and is not {what}: refusing to replace it "
+    if head and not ours(head):
+        return (f"exists and is not {what} pathdensity wrote: refusing to replace it "
                 "(remove it or choose another name)")
     return None
 
@@ -195,16 +200,16 @@ class Presized:
         return False
 
 
-def temp_beside(path, suffix=".tmp"):
+def temp_beside(path):
     """A new file, created exclusively beside `path` (so renaming it into
-    place is atomic), named `.NAME.XXXXXXXX` + suffix: a name no existing
+    place is atomic), named `.NAME.XXXXXXXX.tmp`: a name no existing
     file has, unlike one made from the process id. Its mode is an
     ordinary file's (0666 less the umask, which the kernel applies).
     Returns (fd, name); an error names `path`."""
     folder, name = os.path.split(os.path.abspath(path))
     flags = os.O_RDWR | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
     for _ in range(100):
-        tmp = os.path.join(folder, f".{name}.{secrets.token_hex(4)}{suffix}")
+        tmp = os.path.join(folder, f".{name}.{secrets.token_hex(4)}.tmp")
         try:
             return os.open(tmp, flags, 0o666), tmp
         except FileExistsError:

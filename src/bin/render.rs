@@ -80,13 +80,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         seed: cli.seed,
     };
     // Every output is checked before the render: each may replace only a
-    // file of its own kind, and the reference is not the dump.
+    // file of its own kind (an EXR only if pathdensity wrote it), and the
+    // reference is not the dump.
     if let Some(path) = &cli.reference_out {
         for p in exr::reference_files(path, frames as usize) {
             if p == cli.out {
                 anyhow::bail!("{}: is both the dump and the reference", p.display());
             }
-            Inputs::default().check_file(&p, guard::looks_like_exr)?;
+            Inputs::default().check_file(&p, exr::written_by_us)?;
         }
     }
     Inputs::default().check_file(&cli.out, guard::looks_like_dump)?;

@@ -33,6 +33,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+import exrio  # noqa: E402
 import pds  # noqa: E402
 from exporter import ExportError, Progress, check_outputs, parse_size, positive  # noqa: E402
 
@@ -263,7 +264,7 @@ def export_reference(camera, args):
         total += records[:, 3:6].astype(np.float64).reshape(count, pixels, 3).sum(axis=0)
         progress.advance(pixels * count)
     mean = (total / args.reference_spp).astype(np.float32).reshape(h, w, 3)
-    write_exr(camera.mi, mean, args.reference_out)
+    exrio.write_rgb(args.reference_out, mean)
 
 
 def export_aux(mi, scene, args):
@@ -279,18 +280,7 @@ def export_aux(mi, scene, args):
         raise ExportError(f"{args.scene}: the aov integrator gave {image.shape}, not H x W x 6")
     for path, channels in ((args.albedo_out, image[:, :, 0:3]), (args.normal_out, image[:, :, 3:6])):
         if path:
-            write_exr(mi, np.ascontiguousarray(channels, dtype=np.float32), path)
-
-
-def write_exr(mi, image, path):
-    fd, tmp = pds.temp_beside(path, suffix=".tmp.exr")  # Mitsuba reads the format from the name
-    os.close(fd)
-    try:
-        mi.Bitmap(image, mi.Bitmap.PixelFormat.RGB).write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+            exrio.write_rgb(path, channels)
 
 
 def main(argv):

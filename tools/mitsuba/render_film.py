@@ -27,12 +27,12 @@ def main(argv):
     p.add_argument("--variant", default="llvm_ad_rgb")
     args = p.parse_args(argv)
     try:
+        export.check_outputs([args.scene], [(args.out, "exr")])
         mi, _ = export.load_mitsuba(args.variant, None)
         scene = export.load_scene(mi, args.scene, args.size)
         export.check_scene(mi, args.scene, scene)
         image = mi.render(scene, spp=args.spp, seed=args.seed)
-        export.write_exr(mi, export.np.asarray(image, dtype=export.np.float32)[:, :, :3],
-                         args.out)
+        export.exrio.write_rgb(args.out, export.np.asarray(image, dtype=export.np.float32)[:, :, :3])
     except export.ExportError as e:
         print(f"render_film.py: {e}", file=sys.stderr)
         return 1

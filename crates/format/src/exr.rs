@@ -1,5 +1,6 @@
 //! EXR images: written as 32-bit float RGB, clamped to the finite range,
-//! under a temporary name and renamed when complete.
+//! under a temporary name and renamed when complete, with a
+//! [`WRITER_ATTRIBUTE`] in the header that says pathdensity wrote them.
 
 use std::io::Seek;
 use std::path::Path;
@@ -23,12 +24,64 @@ pub fn write_frame(path: &Path, img: &Image, frame: usize) -> Result<()> {
         let p = px[y * w + x];
         (finite_f32(p[0]), finite_f32(p[1]), finite_f32(p[2]))
     });
-    exr::prelude::Image::from_channels((img.width, img.height), channels)
+    let mut image = exr::prelude::Image::from_channels((img.width, img.height), channels);
+    image.layer_data.attributes.other.insert(
+        Text::from(WRITER_ATTRIBUTE),
+        AttributeValue::Text(Text::from(WRITER_VALUE)),
+    );
+    image
         .write()
         .non_parallel()
         .to_file(f.tmp_path())
         .map_err(|e| Error::format(path, format!("cannot write EXR: {e}")))?;
     f.commit()
+}
+
+/// The header attribute (a string) every EXR pathdensity writes carries,
+/// Rust or Python (`tools/exrio.py`): an existing EXR is replaced only if
+/// it has it ([`written_by_us`]), so a user's own image at an output's
+/// name is never overwritten.
+pub const WRITER_ATTRIBUTE: &str = "pathdensity";
+const WRITER_VALUE: &str = "written by pathdensity";
+
+/// Whether `head`, the start of a file, is an EXR whose header (within
+/// `head`) holds [`WRITER_ATTRIBUTE`]. The header is a run of attributes,
+/// each name NUL, type NUL, a little-endian byte count and the value,
+/// ended by an empty name (the OpenEXR file layout); a truncated or
+/// malformed one is not ours.
+pub fn written_by_us(head: &[u8]) -> bool {
+    if !crate::guard::looks_like_exr(head) || head.len() < 8 {
+        return false;
+    }
+    let mut rest = &head[8..];
+    let mut field = |rest: &mut &[u8]| -> Option<Vec<u8>> {
+        let end = rest.iter().position(|&b| b == 0)?;
+        let f = rest[..end].to_vec();
+        *rest = &rest[end + 1..];
+        Some(f)
+    };
+    loop {
+        let Some(name) = field(&mut rest) else {
+            return false;
+        };
+        if name.is_empty() {
+            return false;
+        }
+        let Some(kind) = field(&mut rest) else {
+            return false;
+        };
+        let Some(size) = rest.get(..4) else {
+            return false;
+        };
+        let size = u32::from_le_bytes(size.try_into().unwrap()) as usize;
+        if name == WRITER_ATTRIBUTE.as_bytes() && kind == b"string" {
+            return true;
+        }
+        let Some(next) = rest.get(4 + size..) else {
+            return false;
+        };
+        rest = next;
+    }
 }
 
 /// Writes `NAME.exr` for a still, `NAME_0000.exr`, … for an animation.
@@ -132,6 +185,31 @@ pub fn read_reference(path: &Path, width: usize, height: usize, frames: usize) -
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn our_exrs_are_marked_and_others_are_not() {
+        let dir = tempfile::tempdir().unwrap();
+        let ours = dir.path().join("ours.exr");
+        write_frame(&ours, &Image::new(3, 2, 1), 0).unwrap();
+        let head = std::fs::read(&ours).unwrap();
+        assert!(written_by_us(&head));
+        // The same image from exr itself, with no marker.
+        let theirs = dir.path().join("theirs.exr");
+        let channels = SpecificChannels::rgb(|_: Vec2<usize>| (0.5f32, 0.5f32, 0.5f32));
+        exr::prelude::Image::from_channels((3, 2), channels)
+            .write()
+            .to_file(&theirs)
+            .unwrap();
+        let head = std::fs::read(&theirs).unwrap();
+        assert!(crate::guard::looks_like_exr(&head) && !written_by_us(&head));
+        // Truncated anywhere, ours is not recognised past the cut, and
+        // nothing panics.
+        let head = std::fs::read(&ours).unwrap();
+        for n in 0..head.len().min(400) {
+            let _ = written_by_us(&head[..n]);
+        }
+        assert!(!written_by_us(b"not an exr at all"));
+    }
 
     /// The same image gives the same bytes, however many times it is
     /// written (exr's parallel writer filed chunks in finishing order).

@@ -9,6 +9,11 @@ and 32-bit floats, which this reads exactly; it refuses anything else
 
     channels, (w, h) = exrio.read("render.exr")   # {name: (h, w) float32}
     exrio.write_rgb("out.exr", image)             # image: (h, w, 3) float32
+
+Every EXR the exporters write goes through `write_rgb`, which marks it with
+the `pathdensity` string attribute the Rust side writes too: an existing
+EXR is replaced only if it has it (`written_by_us`), so a user's own image
+at an output's name is never overwritten.
 """
 
 import os
@@ -17,10 +22,12 @@ import sys
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import pds  # noqa: E402
 
 MAGIC = 20000630
+# The header attribute (a string) that says pathdensity wrote the file.
+WRITER_ATTRIBUTE = "pathdensity"
 FLOAT, HALF, UINT = 2, 1, 0
 TILED, LONG_NAMES, NON_IMAGE, MULTIPART = 0x200, 0x400, 0x800, 0x1000
 
@@ -44,6 +51,18 @@ def _header(buf, o):
         attrs[name] = (kind, buf[o:o + size])
         o += size
     return attrs, o + 1
+
+
+def written_by_us(head):
+    """Whether `head`, the start of a file, is an EXR whose header (within
+    `head`) holds WRITER_ATTRIBUTE; a truncated or malformed one is not."""
+    if len(head) < 8 or struct.unpack_from("<i", head)[0] != MAGIC:
+        return False
+    try:
+        attrs, _ = _header(head, 8)
+    except (ValueError, IndexError, struct.error):
+        return False
+    return attrs.get(WRITER_ATTRIBUTE, ("",))[0] == "string"
 
 
 def _channels(path, attrs):
@@ -144,6 +163,7 @@ def write_rgb(path, image):
               + _attr("pixelAspectRatio", "float", struct.pack("<f", 1.0))
               + _attr("screenWindowCenter", "v2f", struct.pack("<ff", 0.0, 0.0))
               + _attr("screenWindowWidth", "float", struct.pack("<f", 1.0))
+              + _attr(WRITER_ATTRIBUTE, "string", b"written by pathdensity")
               + b"\0")
     line = 8 + 12 * w
     start = len(header) + 8 * h
