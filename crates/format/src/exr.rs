@@ -54,12 +54,13 @@ pub fn written_by_us(head: &[u8]) -> bool {
         return false;
     }
     let mut rest = &head[8..];
-    let mut field = |rest: &mut &[u8]| -> Option<Vec<u8>> {
+    // The NUL-terminated field at the start of `rest`, which moves past it.
+    fn field<'a>(rest: &mut &'a [u8]) -> Option<&'a [u8]> {
         let end = rest.iter().position(|&b| b == 0)?;
-        let f = rest[..end].to_vec();
+        let f = &rest[..end];
         *rest = &rest[end + 1..];
         Some(f)
-    };
+    }
     loop {
         let Some(name) = field(&mut rest) else {
             return false;
