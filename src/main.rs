@@ -8,7 +8,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use pathdensity::commands::batch::{self, BatchOptions, shard::Shard};
 use pathdensity::commands::{filter, info, regress, sweep};
 use pathdensity::config::{
-    ColorSpace, ConfigError, Denoise, FilterConfig, FinalPass, Method, Recon, White,
+    ColorSpace, ConfigError, Denoise, FilterConfig, FinalPass, MethodSet, Recon, White,
 };
 use pathdensity::density::IndexKind;
 use pathdensity::dump::Order;
@@ -55,9 +55,11 @@ struct ConfigArgs {
     /// grid or kdtree (results do not depend on it).
     #[arg(long, default_value_t = D.index)]
     index: IndexKind,
-    /// Images besides mean and filtered (default: all but oidn).
-    #[arg(long, value_delimiter = ',')]
-    methods: Option<Vec<Method>>,
+    /// Images besides mean and filtered, comma-separated; `all` for every
+    /// image this machine can make (default: filtered_energy and the
+    /// recommended image, guided_oidn where OIDN is found, else guided).
+    #[arg(long)]
+    methods: Option<MethodSet>,
     /// α of the trimmed mean: ⌊α n⌋ samples dropped at each end.
     #[arg(long, default_value_t = D.alpha)]
     alpha: f64,
@@ -123,11 +125,7 @@ impl From<ConfigArgs> for FilterConfig {
             white: a.white,
             recon: a.recon,
             index: a.index,
-            methods: a
-                .methods
-                .map_or_else(pathdensity::method::MethodSet::default_here, |m| {
-                    m.into_iter().collect()
-                }),
+            methods: a.methods.unwrap_or_else(MethodSet::default_here),
             alpha: a.alpha,
             bilateral_sigma_s: a.bilateral_sigma_s,
             bilateral_sigma_r: a.bilateral_sigma_r,

@@ -252,7 +252,7 @@ fn a_rerun_filters_only_what_changed() {
     p.write(&shots.join("s2.pds")).unwrap();
     assert!(batch(&[]).contains("1 filtered, 2 skipped"));
     // A missing output: redone.
-    std::fs::remove_file(out.join("s3/median.exr")).unwrap();
+    std::fs::remove_file(out.join("s3/filtered_energy.exr")).unwrap();
     assert!(batch(&[]).contains("1 filtered, 2 skipped"));
     // Another configuration, or --force: all redone.
     assert!(batch(&["--k", "7"]).contains("3 filtered, 0 skipped"));

@@ -10,7 +10,7 @@ use std::path::Path;
 
 use common::*;
 use pathdensity::commands::filter::{FilterOptions, filter};
-use pathdensity::config::{FilterConfig, FinalPass, White};
+use pathdensity::config::{FilterConfig, FinalPass, MethodSet, White};
 use pathdensity::density::{self, IndexKind, ReplayOptions};
 use pathdensity::dump::{Header, Record};
 use pathdensity::io::exr::{self, read_rgb};
@@ -31,6 +31,7 @@ fn run(h: &Header, recs: &[Record], k: usize, space: JointSpace) -> (FilterRepor
     o.config.sigma_time = space.sigma_time;
     o.config.white = White::Fixed(space.white);
     o.config.color_space = space.color;
+    o.config.methods = MethodSet::available();
     // The oracle is the paper's replay.
     o.config.final_pass = FinalPass::Stored;
     o.decisions = Some(dir.path().join("dec"));
@@ -230,7 +231,7 @@ fn a_million_identical_samples_reject_exactly_k() {
     o.html = false;
     // The paper's final pass: the first k stored never see k others.
     o.config = FilterConfig {
-        methods: o.config.methods,
+        methods: MethodSet::available(),
         ..FilterConfig::PAPER
     };
     let report = filter(&o).unwrap();

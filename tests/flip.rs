@@ -173,7 +173,12 @@ fn report_json_holds_the_references_flip_on_a_mitsuba_scene() {
     );
     let filter = Command::new(env!("CARGO_BIN_EXE_pathdensity"))
         .args(["filter", &s(&dump), "-o", &s(&out), "--no-html"])
-        .args(["--reference", &s(&reference)])
+        .args([
+            "--reference",
+            &s(&reference),
+            "--methods",
+            "filtered_energy,clamp,median",
+        ])
         .output()
         .unwrap();
     assert!(

@@ -74,6 +74,8 @@ fn a_killed_filter_leaves_complete_files_and_the_previous_outputs() {
                 small.to_str().unwrap(),
                 "-o",
                 out.to_str().unwrap(),
+                "--methods",
+                "all",
             ])
             .output()
             .unwrap();
@@ -107,6 +109,7 @@ fn a_killed_filter_leaves_complete_files_and_the_previous_outputs() {
     for (signal, ms) in fixed.into_iter().chain(random) {
         let mut child = Command::new(bin)
             .args(["filter", big.to_str().unwrap(), "-o", out.to_str().unwrap()])
+            .args(["--methods", "all"])
             .stdout(std::process::Stdio::null())
             .stderr(std::process::Stdio::null())
             .spawn()

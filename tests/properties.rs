@@ -8,7 +8,7 @@ mod common;
 
 use common::REJECTED;
 use pathdensity::commands::filter::{FilterOptions, filter};
-use pathdensity::config::{ColorSpace, FilterConfig, FinalPass, White};
+use pathdensity::config::{ColorSpace, FilterConfig, FinalPass, MethodSet, White};
 use pathdensity::density::{self, Decision, IndexKind, ReplayOptions};
 use pathdensity::dump::{Order, Record};
 use pathdensity::joint::JointSpace;
@@ -96,6 +96,7 @@ proptest! {
             o.config.k = k;
             o.config.sigma_color = sigma_color;
             o.config.index = index;
+            o.config.methods = MethodSet::available();
             o.threads = threads;
             o.html = false;
             o.sigma_map = true;

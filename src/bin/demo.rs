@@ -9,6 +9,7 @@ use std::time::Instant;
 
 use clap::Parser;
 use pathdensity::commands::filter;
+use pathdensity::config::MethodSet;
 use pathdensity::dump::Order;
 use pathdensity::io::exr;
 use pathdensity::io::guard::{self, Inputs};
@@ -79,6 +80,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     );
     let mut opts = filter::FilterOptions::new(&dump, cli.out.join("filtered"));
     opts.reference = Some(cli.out.join(&written[0]));
+    // The demo shows the comparison: every image this machine can make.
+    opts.config.methods = MethodSet::available();
     let report = filter::filter_with_progress(&opts, &Bar::new("filter"))?;
     print!("{}", report.summary());
     println!(

@@ -5,7 +5,7 @@
 # k, RUNS interleaved rounds of
 #   render   Mitsuba exporting the samples (tools/mitsuba/export.py)
 #   bare     pathdensity filter --no-html --methods mean
-#   default  pathdensity filter (every method, report.html, σ map)
+#   default  pathdensity filter (the default images, report.html, σ map)
 #   sigma    pathdensity filter --sigma-map (every sample's exact σ)
 # whole-process wall seconds; prints min and median of each and the ratios.
 #

@@ -2,9 +2,9 @@
 # A production frame: a synthetic 1920 × 1080 × 64-spp pass-major dump
 # (132.7 M samples, 3.2 GB; made once at DUMP, default out/hd/hd.pds), then
 # ROUNDS (default 2) rounds of, in turn, the bare run (`--no-html --methods
-# mean`), the recommended image alone (`--no-html --methods
-# mean,filtered,guided`) and the default run (every default image and the
-# report), 2 threads. Prints each run's wall seconds, report.json's phases
+# mean`), the default images without the report (`--no-html`), the default
+# run (its images and the report) and every image (`--methods all`, the
+# comparison), 2 threads. Prints each run's wall seconds, report.json's phases
 # and peak anonymous memory apart from the mapped dump (tools/bench/peak_rss.sh),
 # then each median over the bare run's.
 #
@@ -19,9 +19,9 @@ mkdir -p "$(dirname "$dump")"
 [ -f "$dump" ] || $pd synth -o "$dump" --width 1920 --height 1080 --spp 64 --order pass >/dev/null
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-declare -A args=([bare]="--no-html --methods mean" [guided]="--no-html --methods mean,filtered,guided" [default]="")
+declare -A args=([bare]="--no-html --methods mean" [nohtml]="--no-html" [default]="" [all]="--methods all")
 for r in $(seq "$rounds"); do
-    for run in bare guided default; do
+    for run in bare nohtml default all; do
         start=$(date +%s.%N)
         # shellcheck disable=SC2086
         mem=$(bash tools/bench/peak_rss.sh $pd filter "$dump" -o "$tmp/$run" --threads 2 ${args[$run]})

@@ -1,5 +1,5 @@
-//! Runs the pipeline on a dump with the default configuration on every
-//! method and prints a digest line per output: the decisions, the counts
+//! Runs the pipeline on a dump with the default configuration and every
+//! method, and prints a digest line per output: the decisions, the counts
 //! and every image, as bits. `tests/sequential.rs` compares the digests of
 //! a build with and without the `parallel` feature.
 //!
@@ -7,7 +7,7 @@
 
 use std::hash::{DefaultHasher, Hash, Hasher};
 
-use pathdensity_core::config::FilterConfig;
+use pathdensity_core::config::{FilterConfig, MethodSet};
 use pathdensity_core::dump::DumpReader;
 use pathdensity_core::pipeline::{self, RunOptions};
 use pathdensity_core::progress::Silent;
@@ -32,7 +32,10 @@ fn main() {
     let run = pipeline::run(
         dump.records(),
         dump.header(),
-        &FilterConfig::DEFAULT,
+        &FilterConfig {
+            methods: MethodSet::available(),
+            ..FilterConfig::DEFAULT
+        },
         &options,
     )
     .unwrap_or_else(|e| panic!("{e}"));

@@ -120,8 +120,9 @@ impl FilterConfig {
     /// joint space `logluv` (F2b) with the white from the dump, the final
     /// pass against every sample (F6a), k = 8 (docs/RESULTS.md, "Planted
     /// fireflies"), σ_color = 50, σ_image = 3,
-    /// σ_time = 2; the methods of [`MethodSet::DEFAULT`] (all but plain
-    /// OIDN), with their authors' defaults.
+    /// σ_time = 2; the methods of [`MethodSet::DEFAULT`] (mean, filtered,
+    /// filtered_energy and the recommended image), the comparison images'
+    /// parameters at their authors' defaults.
     pub const DEFAULT: FilterConfig = FilterConfig {
         k: 8,
         sigma_image: JointSpace::DEFAULT.sigma_image,

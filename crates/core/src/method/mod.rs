@@ -13,7 +13,7 @@ mod image;
 mod set;
 
 pub use image::ImageId;
-pub use set::MethodSet;
+pub use set::{ALL_NAME, MethodSet};
 
 /// One output image. The names are the file names (`NAME.exr`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -228,7 +228,7 @@ pub const TABLE: &[Row] = &[
         needs: SAMPLES,
         pieces: &[Piece::Robust],
         role: Role::Baseline,
-        default: true,
+        default: false,
         recommend: None,
     },
     Row {
@@ -237,7 +237,7 @@ pub const TABLE: &[Row] = &[
         needs: SAMPLES,
         pieces: &[Piece::Robust],
         role: Role::Baseline,
-        default: true,
+        default: false,
         recommend: None,
     },
     Row {
@@ -246,7 +246,7 @@ pub const TABLE: &[Row] = &[
         needs: WHITE,
         pieces: &[],
         role: Role::Baseline,
-        default: true,
+        default: false,
         recommend: None,
     },
     Row {
@@ -255,7 +255,7 @@ pub const TABLE: &[Row] = &[
         needs: SAMPLES,
         pieces: &[],
         role: Role::Outside,
-        default: true,
+        default: false,
         recommend: None,
     },
     Row {
@@ -267,7 +267,7 @@ pub const TABLE: &[Row] = &[
         },
         pieces: &[],
         role: Role::Outside,
-        default: true,
+        default: false,
         recommend: None,
     },
     Row {
@@ -276,7 +276,7 @@ pub const TABLE: &[Row] = &[
         needs: SAMPLES,
         pieces: &[Piece::Mon],
         role: Role::Peer(Param::MonGroups),
-        default: true,
+        default: false,
         recommend: None,
     },
     Row {
@@ -285,7 +285,7 @@ pub const TABLE: &[Row] = &[
         needs: SAMPLES,
         pieces: &[Piece::Mon],
         role: Role::Peer(Param::MonGroups),
-        default: true,
+        default: false,
         recommend: None,
     },
     Row {
@@ -294,7 +294,7 @@ pub const TABLE: &[Row] = &[
         needs: SAMPLES,
         pieces: &[],
         role: Role::Peer(Param::RwmcKappa),
-        default: true,
+        default: false,
         recommend: None,
     },
     Row {
@@ -312,7 +312,7 @@ pub const TABLE: &[Row] = &[
         needs: SAMPLES,
         pieces: &[],
         role: Role::Peer(Param::Clamp),
-        default: true,
+        default: false,
         recommend: None,
     },
     Row {
@@ -324,7 +324,7 @@ pub const TABLE: &[Row] = &[
         },
         pieces: &[Piece::FilteredEnergy, Piece::Interval],
         role: Role::Outside,
-        default: true,
+        default: false,
         recommend: Some(3),
     },
     Row {
@@ -343,7 +343,7 @@ pub const TABLE: &[Row] = &[
         needs: OIDN,
         pieces: &[Piece::OidnMean, Piece::Interval],
         role: Role::EqualTime,
-        default: true,
+        default: false,
         recommend: Some(2),
     },
     Row {
@@ -373,7 +373,7 @@ pub const TABLE: &[Row] = &[
         needs: DECISIONS,
         pieces: &[Piece::Statmc],
         role: Role::Outside,
-        default: true,
+        default: false,
         recommend: None,
     },
 ];

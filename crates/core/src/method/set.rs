@@ -81,9 +81,43 @@ impl MethodSet {
         MethodSet(words)
     }
 
+    /// Every method this process can make ([`Method::available`]): what
+    /// `all` names in a list of methods.
+    pub fn available() -> MethodSet {
+        Method::ALL.into_iter().filter(|m| m.available()).collect()
+    }
+
+    /// A list of method names, where `all` stands for
+    /// [`MethodSet::available`]; mean and filtered are always in.
+    pub fn from_names<'a>(names: impl IntoIterator<Item = &'a str>) -> Result<MethodSet, String> {
+        names.into_iter().try_fold(MethodSet::CORE, |set, name| {
+            Ok(match name {
+                ALL_NAME => set.union(MethodSet::available()),
+                _ => set.with(name.parse()?),
+            })
+        })
+    }
+
+    /// The methods of either set.
+    pub fn union(self, other: MethodSet) -> MethodSet {
+        MethodSet(std::array::from_fn(|w| self.0[w] | other.0[w]))
+    }
+
     /// The methods in the canonical order.
     pub fn iter(self) -> impl Iterator<Item = Method> {
         Method::ALL.into_iter().filter(move |&m| self.contains(m))
+    }
+}
+
+/// The name that stands for every available method in a list of methods.
+pub const ALL_NAME: &str = "all";
+
+/// A comma-separated list of names ([`MethodSet::from_names`]), as
+/// `--methods` takes it.
+impl std::str::FromStr for MethodSet {
+    type Err = String;
+    fn from_str(s: &str) -> Result<MethodSet, String> {
+        MethodSet::from_names(s.split(',').map(str::trim).filter(|n| !n.is_empty()))
     }
 }
 
@@ -107,6 +141,33 @@ impl serde::Serialize for MethodSet {
 
 impl<'de> serde::Deserialize<'de> for MethodSet {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<MethodSet, D::Error> {
-        Ok(Vec::<Method>::deserialize(d)?.into_iter().collect())
+        let names = Vec::<String>::deserialize(d)?;
+        MethodSet::from_names(names.iter().map(String::as_str)).map_err(serde::de::Error::custom)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn all_names_every_available_method() {
+        let s: MethodSet = "median, all".parse().unwrap();
+        assert_eq!(s, MethodSet::available());
+        assert!(s.contains(Method::Rwmc) && s.contains(Method::Statmc));
+        assert_eq!(s.contains(Method::Oidn), Method::Oidn.available());
+        let json: MethodSet = serde_json::from_str(r#"["all"]"#).unwrap();
+        assert_eq!(json, s);
+        let few: MethodSet = "rwmc".parse().unwrap();
+        assert_eq!(
+            few.iter().collect::<Vec<_>>(),
+            [Method::Mean, Method::Filtered, Method::Rwmc]
+        );
+        assert!(
+            "rwmc,nope"
+                .parse::<MethodSet>()
+                .unwrap_err()
+                .contains("unknown method")
+        );
     }
 }
