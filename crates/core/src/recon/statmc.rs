@@ -82,7 +82,7 @@ impl Stats {
 }
 
 /// What the t-test reads of a pixel.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug)]
 struct Test {
     n: u32,
     y_mean: [f64; 3],
@@ -132,8 +132,12 @@ fn spread_limits(tests: &[Test], w: usize, ht: usize) -> Vec<f64> {
     limit
 }
 
+/// λ = 1/2 makes x^λ the square root, which is `powf(0.5)` bit for bit on
+/// every sample (each an f32: docs/BENCHMARKS.md, "statmc's square root")
+/// at a fraction of its cost.
 fn box_cox(x: f64) -> f64 {
-    (x.max(0.0).powf(LAMBDA) - 1.0) / LAMBDA
+    const { assert!(LAMBDA == 0.5) };
+    (x.max(0.0).sqrt() - 1.0) / LAMBDA
 }
 
 /// z of the standard normal at upper tail `p` (Acklam's rational
@@ -169,6 +173,30 @@ fn t_quantile(p: f64, df: f64) -> f64 {
         + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * df.powi(3))
 }
 
+/// Whether two pixels' transformed means agree on channel `c`:
+/// |ȳ_p − ȳ_q| ≤ t·√(s_p²/n_p + s_q²/n_q), exactly as written. The squares
+/// decide first, without the square root, wherever they are clear of the
+/// boundary by far more than the rounding of either form (a relative
+/// 10⁻¹², against about 10⁻¹⁵), and in the normal range; the written form
+/// decides the rest, so the result is the written form's, bit for bit.
+#[inline]
+fn agree(p: &Test, q: &Test, c: usize, crit: f64, crit2: f64) -> bool {
+    const MARGIN: f64 = 1e-12;
+    let d = (p.y_mean[c] - q.y_mean[c]).abs();
+    let s = p.se2[c] + q.se2[c];
+    let bound2 = crit2 * s;
+    if bound2 > 1e-290 {
+        let d2 = d * d;
+        if d2 < bound2 * (1.0 - MARGIN) {
+            return true;
+        }
+        if d2 > bound2 * (1.0 + MARGIN) {
+            return false;
+        }
+    }
+    d <= crit * s.sqrt()
+}
+
 /// The denoised image of the valid samples `keep(i)` picks (record i):
 /// the accepted ones.
 pub fn denoise(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool) -> Image {
@@ -184,6 +212,7 @@ pub fn denoise(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool) -> 
     let t: Vec<f64> = (0..=2 * largest)
         .map(|df| t_quantile(ALPHA / 2.0, df.max(1) as f64))
         .collect();
+    let t2: Vec<f64> = t.iter().map(|t| t * t).collect();
     let sigma = RADIUS as f64 / 2.0;
     let spatial: Vec<f64> = (0..=RADIUS)
         .map(|d| (-((d * d) as f64) / (2.0 * sigma * sigma)).exp())
@@ -218,10 +247,8 @@ pub fn denoise(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool) -> 
                 if tq.n < 2 || tq.spread > limit || tp.spread > limits[q_px] {
                     continue;
                 }
-                let crit = t[(tp.n + tq.n - 2) as usize];
-                let same = (0..3).all(|c| {
-                    (tp.y_mean[c] - tq.y_mean[c]).abs() <= crit * (tp.se2[c] + tq.se2[c]).sqrt()
-                });
+                let df = (tp.n + tq.n - 2) as usize;
+                let same = (0..3).all(|c| agree(tp, tq, c, t[df], t2[df]));
                 if same {
                     let wq = wy * spatial[nx.abs_diff(x)] * tq.n as f64;
                     for (s, m) in sum.iter_mut().zip(means[q_px]) {
@@ -307,6 +334,56 @@ mod tests {
             "{:?} against {own}",
             img.data[12]
         );
+    }
+
+    /// The squared pre-test decides as the written form does, on random
+    /// pairs and on pairs built at the boundary, one ulp either side, in
+    /// the subnormal range and at zero spread.
+    #[test]
+    fn agree_is_the_written_test() {
+        let written = |p: &Test, q: &Test, c: usize, crit: f64| {
+            (p.y_mean[c] - q.y_mean[c]).abs() <= crit * (p.se2[c] + q.se2[c]).sqrt()
+        };
+        let test = |y: f64, se2: f64| Test {
+            n: 8,
+            y_mean: [y; 3],
+            se2: [se2; 3],
+            spread: 3.0 * se2,
+        };
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        // Both outcomes occur at the boundary: the cases test something.
+        let mut outcomes = [0usize; 2];
+        for i in 0..200_000 {
+            let crit = 1.0 + 3.0 * next();
+            let scale = 10f64.powi((next() * 40.0) as i32 - 20);
+            let (se_p, se_q) = (next() * scale, next() * scale);
+            let mut d = crit * (se_p + se_q).sqrt();
+            match i % 4 {
+                0 => d *= 0.5 + next(),
+                1 => {}
+                2 => d = f64::from_bits(d.to_bits() + 1),
+                _ => d = f64::from_bits(d.to_bits().saturating_sub(1)),
+            }
+            for (sp, sq) in [(se_p, se_q), (se_p * 1e-300, se_q * 1e-300), (0.0, 0.0)] {
+                let (p, q) = (test(0.25, sp), test(0.25 + d, sq));
+                let want = written(&p, &q, 0, crit);
+                assert_eq!(
+                    agree(&p, &q, 0, crit, crit * crit),
+                    want,
+                    "{p:?} {q:?} {crit}"
+                );
+                if i % 4 != 0 {
+                    outcomes[usize::from(want)] += 1;
+                }
+            }
+        }
+        assert!(outcomes[0] > 1000 && outcomes[1] > 1000, "{outcomes:?}");
     }
 
     /// An outlier the caller leaves out does not move its pixel.
