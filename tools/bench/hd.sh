@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # A production frame: a synthetic 1920 × 1080 × 64-spp pass-major dump
-# (132.7 M samples, 3.2 GB; made once at DUMP, default out/hd/hd.pds), then
+# (132.7 M samples, 3.2 GB; made once at DUMP, default out/hd/hd.pds; any
+# existing dump at DUMP is used as it is), then
 # ROUNDS (default 2) rounds of, in turn, the bare run (`--no-html --methods
 # mean`), the default images without the report (`--no-html`), the default
 # run (its images and the report) and every image (`--methods all`, the
@@ -25,20 +26,21 @@ for r in $(seq "$rounds"); do
         start=$(date +%s.%N)
         # shellcheck disable=SC2086
         mem=$(bash tools/bench/peak_rss.sh $pd filter "$dump" -o "$tmp/$run" --threads 2 ${args[$run]})
-        wall=$(awk -v a="$start" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }')
-        phases=$(python3 -c "import json,sys; t=json.load(open(sys.argv[1]))['timing']; \
-print('streaming %.1f final %.1f reconstruct %.1f' % (t['streaming_seconds'], t['final_pass_seconds'], t['reconstruct_seconds']))" "$tmp/$run/report.json")
+        wall=$(awk -v a="$start" -v b="$(date +%s.%N)" 'BEGIN { printf "%.3f", b - a }')
+        phases=$(python3 -c "import json,sys; r=json.load(open(sys.argv[1])); t=r['timing']; \
+print('%d streaming %.2f final %.2f reconstruct %.2f' % (r['counts']['records'], t['streaming_seconds'], t['final_pass_seconds'], t['reconstruct_seconds']))" "$tmp/$run/report.json")
         echo "$run $wall $phases $mem" | tee -a "$tmp/log"
     done
 done
 python3 - "$tmp/log" <<'PY'
 import statistics, sys
-walls = {}
+walls, records = {}, 0
 for line in open(sys.argv[1]):
     f = line.split()
     walls.setdefault(f[0], []).append(float(f[1]))
+    records = int(f[2])
 bare = statistics.median(walls["bare"])
 for run, w in walls.items():
     m = statistics.median(w)
-    print(f"{run:8} median {m:6.1f} s  {m / bare:.2f}x bare  {132710400 / m / 1e6:.2f} M samples/s")
+    print(f"{run:8} median {m:7.2f} s  {m / bare:.2f}x bare  {records / m / 1e6:.2f} M samples/s")
 PY
