@@ -154,6 +154,13 @@ def test_without_a_reference_there_are_no_metrics(tmp_path):
     again = pd.filter(r, header=h, methods=["median"])
     assert again.decisions.tobytes() == res.decisions.tobytes()
     assert repr(res).startswith("FilterResult(images=[mean, filtered, median]")
+    # By default what a user keeps; "all" every image the machine can make.
+    default = pd.filter(r, header=h)
+    assert {"mean", "filtered", "filtered_energy"} <= set(default.images)
+    assert default.recommended in ("guided", "guided_oidn")
+    every = pd.filter(r, header=h, methods="all")
+    assert {"median", "rwmc", "statmc", "clamp"} <= set(every.images)
+    assert set(default.images) < set(every.images)
 
 
 @pytest.mark.parametrize("kw", [
