@@ -55,11 +55,11 @@ struct ConfigArgs {
     /// grid or kdtree (results do not depend on it).
     #[arg(long, default_value_t = D.index)]
     index: IndexKind,
-    /// Images besides mean and filtered, comma-separated; `all` for every
-    /// image this machine can make (default: filtered_energy and the
-    /// recommended image, guided_oidn where OIDN is found, else guided).
-    #[arg(long)]
-    methods: Option<MethodSet>,
+    /// The images besides mean and filtered, instead of the default ones
+    /// (filtered_energy and the recommended image: guided_oidn where OIDN
+    /// is found, else guided); `all` for every image this machine can make.
+    #[arg(long, value_delimiter = ',')]
+    methods: Option<Vec<MethodSet>>,
     /// α of the trimmed mean: ⌊α n⌋ samples dropped at each end.
     #[arg(long, default_value_t = D.alpha)]
     alpha: f64,
@@ -125,7 +125,9 @@ impl From<ConfigArgs> for FilterConfig {
             white: a.white,
             recon: a.recon,
             index: a.index,
-            methods: a.methods.unwrap_or_else(MethodSet::default_here),
+            methods: a.methods.map_or_else(MethodSet::default_here, |sets| {
+                sets.into_iter().fold(MethodSet::CORE, MethodSet::union)
+            }),
             alpha: a.alpha,
             bilateral_sigma_s: a.bilateral_sigma_s,
             bilateral_sigma_r: a.bilateral_sigma_r,

@@ -15,7 +15,7 @@ use pathdensity::synth::SynthParams;
 /// method's EXR and PNG, the removed energy, the σ map, the slice plot,
 /// the reports and the folder's marker.
 fn default_outputs() -> Vec<String> {
-    let mut names: Vec<String> = MethodSet::DEFAULT
+    let mut names: Vec<String> = MethodSet::default_here()
         .iter()
         .map(|m| m.name())
         .chain(["rejected", "sigma"])

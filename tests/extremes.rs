@@ -31,7 +31,7 @@ fn run(h: &Header, recs: &[Record], k: usize, space: JointSpace) -> (FilterRepor
     o.config.sigma_time = space.sigma_time;
     o.config.white = White::Fixed(space.white);
     o.config.color_space = space.color;
-    o.config.methods = MethodSet::available();
+    o.config.methods = MethodSet::NO_OIDN;
     // The oracle is the paper's replay.
     o.config.final_pass = FinalPass::Stored;
     o.decisions = Some(dir.path().join("dec"));
@@ -231,7 +231,7 @@ fn a_million_identical_samples_reject_exactly_k() {
     o.html = false;
     // The paper's final pass: the first k stored never see k others.
     o.config = FilterConfig {
-        methods: MethodSet::available(),
+        methods: MethodSet::NO_OIDN,
         ..FilterConfig::PAPER
     };
     let report = filter(&o).unwrap();

@@ -171,8 +171,8 @@ fn oidn_images_equal_the_reference_librarys_and_runs_repeat() {
     }
 }
 
-/// When OIDN is found the default run makes guided_oidn and recommends
-/// it: first row of the table, `"recommended"` in report.json, and the
+/// When OIDN is found the default run makes guided_oidn, not guided, and
+/// recommends it: first row of the table, `"recommended"` in report.json, and the
 /// summary and report.json name the library.
 #[test]
 fn a_found_oidn_makes_guided_oidn_the_recommended_image() {
@@ -198,6 +198,14 @@ fn a_found_oidn_makes_guided_oidn_the_recommended_image() {
         .nth(1)
         .unwrap_or_else(|| panic!("no table in\n{table}"));
     assert!(first.contains("guided_oidn (use)"), "{table}");
+    // One recommended image: guided_oidn in guided's place, no comparison
+    // images.
+    for name in ["guided_oidn", "filtered_energy"] {
+        assert!(out.join(format!("{name}.exr")).is_file(), "{name}");
+    }
+    for name in ["guided", "statmc", "oidn_ci", "median"] {
+        assert!(!out.join(format!("{name}.exr")).exists(), "{name}");
+    }
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(report["recommended"], "guided_oidn");

@@ -96,7 +96,7 @@ proptest! {
             o.config.k = k;
             o.config.sigma_color = sigma_color;
             o.config.index = index;
-            o.config.methods = MethodSet::available();
+            o.config.methods = MethodSet::NO_OIDN;
             o.threads = threads;
             o.html = false;
             o.sigma_map = true;
@@ -209,6 +209,7 @@ proptest! {
             sigma_time: 10f64.powf(log_st),
             white,
             index,
+            methods: MethodSet::NO_OIDN,
             ..FilterConfig::DEFAULT
         };
         let h = p.header();

@@ -43,5 +43,5 @@ with tempfile.TemporaryDirectory() as tmp:
             ratios[n].append(med[n] / med["bare"])
         print(f"| {os.path.basename(dump)} | " + " | ".join(f"{med[n]:.3f}" for n in names) + " | "
               + " | ".join(f"{med[n] / med['bare']:.2f}" for n in names[1:]) + " |", flush=True)
-print("| **geo. mean** | " + " | " * (len(names) - 1) + " | ".join(
+print("| **geo. mean** | " + " | " * len(names) + " | ".join(
     f"{statistics.geometric_mean(ratios[n]):.2f}" for n in names[1:]) + " |")

@@ -37,7 +37,7 @@ for order in pixel pass; do
         wait $pid
         end=$(date +%s.%N)
         stored=$(python3 -c "import json;print(json.load(open('$out/report.json'))['counts']['stored'])")
-        printf "| %s | %s | %.1f | %.0f | %.0f | %s |\n" "$order-major" "${opts:-all methods + report}" \
+        printf "| %s | %s | %.1f | %.0f | %.0f | %s |\n" "$order-major" "${opts:-the default images + report}" \
             "$(echo "$end - $start" | bc)" "$(echo "$anon / 1024" | bc)" "$(echo "$file / 1024" | bc)" "$stored"
     done
 done

@@ -30,7 +30,7 @@ for s in $scenes; do
             "${frames[@]}" --threads "$threads" -o "$d/dump.pds" "${refargs[@]}" > /dev/null
         touch "${ref%.exr}.done"
         ./target/release/pathdensity filter "$d/dump.pds" -o "$d" --reference "$ref" \
-            --no-html --threads "$threads" > /dev/null
+            --no-html --methods all --threads "$threads" > /dev/null
         rm "$d/dump.pds"
         python3 - "$d/report.json" "$s" "$spp" >> "$csv" <<'PY'
 import json, sys

@@ -33,7 +33,7 @@ fn main() {
         dump.records(),
         dump.header(),
         &FilterConfig {
-            methods: MethodSet::available(),
+            methods: MethodSet::NO_OIDN,
             ..FilterConfig::DEFAULT
         },
         &options,

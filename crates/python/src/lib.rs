@@ -140,8 +140,8 @@ impl FilterResult {
 /// C-contiguous (N, 6) float32 array (x, y, t, r, g, b), read in place. The
 /// film is `width` × `height` × `frames` (or `header`, a dict as `read_dump`
 /// returns). `config` is any FilterConfig field, named as in report.json's
-/// "config" (k=10, sigma_color=100.0, white="auto", methods="median,clamp"
-/// or a list of names); the rest default as the command line's. `reference`
+/// "config" (k=10, sigma_color=100.0, white="auto", methods="median,clamp",
+/// "all" or a list of names); the rest default as the command line's. `reference`
 /// is a float array (H, W, 3) or (frames, H, W, 3); so are `albedo` and
 /// `normal`, OIDN's auxiliary inputs (as `--albedo` and `--normal`). The GIL is released
 /// while the filter runs; do not write to `records` meanwhile.

@@ -13,7 +13,7 @@ mod image;
 mod set;
 
 pub use image::ImageId;
-pub use set::{ALL_NAME, MethodSet};
+pub use set::MethodSet;
 
 /// One output image. The names are the file names (`NAME.exr`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -180,6 +180,19 @@ pub enum Role {
     Outside,
 }
 
+/// Whether a run makes an image when `--methods` is not given
+/// ([`MethodSet::default_here`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Made {
+    /// Only when named (`--methods NAME`, or `all`).
+    ByName,
+    /// By default, where this process can make it.
+    ByDefault,
+    /// By default where this process can make it, and then the given
+    /// default image is not made: one recommended image a run.
+    InsteadOf(Method),
+}
+
 /// One row of the method table.
 #[derive(Clone, Copy, Debug)]
 pub struct Row {
@@ -191,9 +204,8 @@ pub struct Row {
     /// The work it shares with other images.
     pub pieces: &'static [Piece],
     pub role: Role,
-    /// Made unless `--methods` says otherwise (a method that needs OIDN
-    /// only where OIDN is found: [`super::MethodSet::default_here`]).
-    pub default: bool,
+    /// Whether a run makes it when `--methods` is not given.
+    pub default: Made,
     /// Its rank as the image a user should use, 0 first, no two alike:
     /// the first of the ranked images a run made is its `recommended`
     /// image (README, "Which image to use"; measured in docs/RESULTS.md,
@@ -210,7 +222,7 @@ pub const TABLE: &[Row] = &[
         needs: SAMPLES,
         pieces: &[],
         role: Role::Baseline,
-        default: true,
+        default: Made::ByDefault,
         recommend: None,
     },
     Row {
@@ -219,7 +231,7 @@ pub const TABLE: &[Row] = &[
         needs: DECISIONS,
         pieces: &[],
         role: Role::Grid,
-        default: true,
+        default: Made::ByDefault,
         recommend: Some(5),
     },
     Row {
@@ -228,7 +240,7 @@ pub const TABLE: &[Row] = &[
         needs: SAMPLES,
         pieces: &[Piece::Robust],
         role: Role::Baseline,
-        default: false,
+        default: Made::ByName,
         recommend: None,
     },
     Row {
@@ -237,7 +249,7 @@ pub const TABLE: &[Row] = &[
         needs: SAMPLES,
         pieces: &[Piece::Robust],
         role: Role::Baseline,
-        default: false,
+        default: Made::ByName,
         recommend: None,
     },
     Row {
@@ -246,7 +258,7 @@ pub const TABLE: &[Row] = &[
         needs: WHITE,
         pieces: &[],
         role: Role::Baseline,
-        default: false,
+        default: Made::ByName,
         recommend: None,
     },
     Row {
@@ -255,7 +267,7 @@ pub const TABLE: &[Row] = &[
         needs: SAMPLES,
         pieces: &[],
         role: Role::Outside,
-        default: false,
+        default: Made::ByName,
         recommend: None,
     },
     Row {
@@ -267,7 +279,7 @@ pub const TABLE: &[Row] = &[
         },
         pieces: &[],
         role: Role::Outside,
-        default: false,
+        default: Made::ByName,
         recommend: None,
     },
     Row {
@@ -276,7 +288,7 @@ pub const TABLE: &[Row] = &[
         needs: SAMPLES,
         pieces: &[Piece::Mon],
         role: Role::Peer(Param::MonGroups),
-        default: false,
+        default: Made::ByName,
         recommend: None,
     },
     Row {
@@ -285,7 +297,7 @@ pub const TABLE: &[Row] = &[
         needs: SAMPLES,
         pieces: &[Piece::Mon],
         role: Role::Peer(Param::MonGroups),
-        default: false,
+        default: Made::ByName,
         recommend: None,
     },
     Row {
@@ -294,7 +306,7 @@ pub const TABLE: &[Row] = &[
         needs: SAMPLES,
         pieces: &[],
         role: Role::Peer(Param::RwmcKappa),
-        default: false,
+        default: Made::ByName,
         recommend: None,
     },
     Row {
@@ -303,7 +315,7 @@ pub const TABLE: &[Row] = &[
         needs: DECISIONS,
         pieces: &[Piece::FilteredEnergy],
         role: Role::Grid,
-        default: true,
+        default: Made::ByDefault,
         recommend: Some(4),
     },
     Row {
@@ -312,7 +324,7 @@ pub const TABLE: &[Row] = &[
         needs: SAMPLES,
         pieces: &[],
         role: Role::Peer(Param::Clamp),
-        default: false,
+        default: Made::ByName,
         recommend: None,
     },
     Row {
@@ -324,7 +336,7 @@ pub const TABLE: &[Row] = &[
         },
         pieces: &[Piece::FilteredEnergy, Piece::Interval],
         role: Role::Outside,
-        default: false,
+        default: Made::ByName,
         recommend: Some(3),
     },
     Row {
@@ -334,7 +346,7 @@ pub const TABLE: &[Row] = &[
         pieces: &[Piece::OidnMean],
         role: Role::EqualTime,
         // Asked for by name, or with `denoise`.
-        default: false,
+        default: Made::ByName,
         recommend: None,
     },
     Row {
@@ -343,7 +355,7 @@ pub const TABLE: &[Row] = &[
         needs: OIDN,
         pieces: &[Piece::OidnMean, Piece::Interval],
         role: Role::EqualTime,
-        default: false,
+        default: Made::ByName,
         recommend: Some(2),
     },
     Row {
@@ -352,7 +364,7 @@ pub const TABLE: &[Row] = &[
         needs: DECISIONS,
         pieces: &[Piece::Statmc, Piece::Interval, Piece::AcceptedInterval],
         role: Role::Outside,
-        default: true,
+        default: Made::ByDefault,
         recommend: Some(1),
     },
     Row {
@@ -364,7 +376,7 @@ pub const TABLE: &[Row] = &[
         },
         pieces: &[Piece::OidnMean, Piece::Interval, Piece::AcceptedInterval],
         role: Role::Outside,
-        default: true,
+        default: Made::InsteadOf(Method::Guided),
         recommend: Some(0),
     },
     Row {
@@ -373,7 +385,7 @@ pub const TABLE: &[Row] = &[
         needs: DECISIONS,
         pieces: &[Piece::Statmc],
         role: Role::Outside,
-        default: false,
+        default: Made::ByName,
         recommend: None,
     },
 ];

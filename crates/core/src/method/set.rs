@@ -1,6 +1,6 @@
 //! [`MethodSet`]: the images a run makes, as one bit a method.
 
-use super::{Method, TABLE};
+use super::{Made, Method, TABLE};
 
 /// A set of methods that always holds mean and filtered, which every run
 /// makes. Iterates in the canonical order of [`Method::ALL`]; in JSON a
@@ -35,14 +35,12 @@ impl MethodSet {
         s
     };
 
-    /// What a run makes unless told otherwise, wherever it runs: each
-    /// row's `default` that needs no OIDN. [`MethodSet::default_here`]
-    /// adds the OIDN rows when this process finds OIDN.
-    pub const DEFAULT: MethodSet = {
+    /// Every method that needs no OIDN: what every machine can make.
+    pub const NO_OIDN: MethodSet = {
         let mut s = MethodSet::CORE;
         let mut i = 0;
         while i < Method::COUNT {
-            if TABLE[i].default && !TABLE[i].needs.oidn {
+            if !TABLE[i].needs.oidn {
                 s = s.with(TABLE[i].method);
             }
             i += 1;
@@ -50,14 +48,34 @@ impl MethodSet {
         s
     };
 
-    /// [`MethodSet::DEFAULT`], and the default rows that need OIDN when
-    /// this process finds it ([`crate::imagespace::oidn::library`]): what
-    /// the commands make when no `--methods` is given.
+    /// What a run makes unless told otherwise, wherever it runs: each
+    /// row made by default that needs no OIDN. [`MethodSet::default_here`]
+    /// swaps in the OIDN rows when this process finds OIDN.
+    pub const DEFAULT: MethodSet = {
+        let mut s = MethodSet::CORE;
+        let mut i = 0;
+        while i < Method::COUNT {
+            if matches!(TABLE[i].default, Made::ByDefault) && !TABLE[i].needs.oidn {
+                s = s.with(TABLE[i].method);
+            }
+            i += 1;
+        }
+        s
+    };
+
+    /// [`MethodSet::DEFAULT`] with the default rows this process can make
+    /// besides, OIDN's where it finds it
+    /// ([`crate::imagespace::oidn::library`]), each in place of the image
+    /// its row names: what the commands make when no `--methods` is given.
     pub fn default_here() -> MethodSet {
         TABLE
             .iter()
-            .filter(|r| r.default && r.method.available())
-            .fold(MethodSet::DEFAULT, |s, r| s.with(r.method))
+            .filter(|r| r.method.available())
+            .fold(MethodSet::DEFAULT, |s, r| match r.default {
+                Made::ByName => s,
+                Made::ByDefault => s.with(r.method),
+                Made::InsteadOf(other) => s.with(r.method).without(other),
+            })
     }
 
     pub const fn contains(self, m: Method) -> bool {
@@ -110,14 +128,18 @@ impl MethodSet {
 }
 
 /// The name that stands for every available method in a list of methods.
-pub const ALL_NAME: &str = "all";
+const ALL_NAME: &str = "all";
 
 /// A comma-separated list of names ([`MethodSet::from_names`]), as
 /// `--methods` takes it.
 impl std::str::FromStr for MethodSet {
     type Err = String;
     fn from_str(s: &str) -> Result<MethodSet, String> {
-        MethodSet::from_names(s.split(',').map(str::trim).filter(|n| !n.is_empty()))
+        let names: Vec<&str> = s.split(',').map(str::trim).collect();
+        if names.contains(&"") {
+            return Err(format!("{s:?} names no method"));
+        }
+        MethodSet::from_names(names)
     }
 }
 
@@ -169,5 +191,19 @@ mod tests {
                 .unwrap_err()
                 .contains("unknown method")
         );
+        assert!("".parse::<MethodSet>().is_err() && "rwmc,".parse::<MethodSet>().is_err());
+        // By default one recommended image: guided_oidn in guided's place.
+        let here = MethodSet::default_here();
+        assert!(here.contains(Method::FilteredEnergy));
+        assert_ne!(
+            here.contains(Method::Guided),
+            here.contains(Method::GuidedOidn)
+        );
+        assert_eq!(
+            here.contains(Method::GuidedOidn),
+            Method::GuidedOidn.available()
+        );
+        assert!(!MethodSet::NO_OIDN.iter().any(Method::needs_oidn));
+        assert!(MethodSet::NO_OIDN.contains(Method::Rwmc));
     }
 }
