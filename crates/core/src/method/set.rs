@@ -36,32 +36,27 @@ impl MethodSet {
     };
 
     /// Every method that needs no OIDN: what every machine can make.
-    pub const NO_OIDN: MethodSet = {
-        let mut s = MethodSet::CORE;
-        let mut i = 0;
-        while i < Method::COUNT {
-            if !TABLE[i].needs.oidn {
-                s = s.with(TABLE[i].method);
-            }
-            i += 1;
-        }
-        s
-    };
+    pub const NO_OIDN: MethodSet = MethodSet::without_oidn(false);
 
     /// What a run makes unless told otherwise, wherever it runs: each
     /// row made by default that needs no OIDN. [`MethodSet::default_here`]
     /// swaps in the OIDN rows when this process finds OIDN.
-    pub const DEFAULT: MethodSet = {
+    pub const DEFAULT: MethodSet = MethodSet::without_oidn(true);
+
+    /// The rows that need no OIDN, and only those made by default if
+    /// `by_default`.
+    const fn without_oidn(by_default: bool) -> MethodSet {
         let mut s = MethodSet::CORE;
         let mut i = 0;
         while i < Method::COUNT {
-            if matches!(TABLE[i].default, Made::ByDefault) && !TABLE[i].needs.oidn {
-                s = s.with(TABLE[i].method);
+            let row = &TABLE[i];
+            if !row.needs.oidn && (!by_default || matches!(row.default, Made::ByDefault)) {
+                s = s.with(row.method);
             }
             i += 1;
         }
         s
-    };
+    }
 
     /// [`MethodSet::DEFAULT`] with the default rows this process can make
     /// besides, OIDN's where it finds it
