@@ -5,6 +5,12 @@
 use super::sigma::Goal;
 use crate::dump::{Header, Order};
 
+/// About how many exact σ the report's map asks for, whatever the film's
+/// size: each is a search that goes on past its decision, and at 8 a pixel
+/// a 1080p film's took a third of the replay's time (docs/BENCHMARKS.md,
+/// "A production frame").
+pub const MAP_SEARCHES: u64 = 1 << 21;
+
 /// Which samples' exact σ a replay computes. None of these changes a
 /// decision: a search that only decides stops as soon as σ < 1 or σ ≥ 1
 /// is proven, one that wants σ finds the k nearest.
@@ -24,14 +30,18 @@ pub enum ExactSigma {
 }
 
 impl ExactSigma {
-    /// The HTML report's σ map (docs/filter.md §2): 8 exact σ in each
+    /// The HTML report's σ map (docs/filter.md §2): p exact σ in each
     /// pixel where the dump's order tells which samples those are, else
-    /// about 16 (so that, picked by a hash, none misses a pixel); every σ
-    /// when the dump has no more than that.
+    /// about max(2p, 8) (so that, picked by a hash, none misses a pixel);
+    /// every σ when the dump has no more than that. p is 8 up to
+    /// [`MAP_SEARCHES`] / 8 pixels (all frames), then fewer so that the
+    /// map's searches stay near [`MAP_SEARCHES`], and at least 1.
     pub fn for_map(h: &Header) -> ExactSigma {
-        match Strata::new(h, h.spp / 8) {
+        let pixels = (h.pixels() as u64 * h.frames as u64).max(1);
+        let p = (MAP_SEARCHES / pixels).clamp(1, 8) as u32;
+        match Strata::new(h, h.spp / p) {
             Some(s) => ExactSigma::Strata(s),
-            None if h.spp / 16 >= 2 => ExactSigma::OneIn(h.spp / 16),
+            None if h.spp / (2 * p).max(8) >= 2 => ExactSigma::OneIn(h.spp / (2 * p).max(8)),
             None => ExactSigma::All,
         }
     }
@@ -285,6 +295,35 @@ mod tests {
                     assert_eq!(walked, want, "{order} {pick:?} {lo}..{hi}");
                 }
             }
+        }
+    }
+
+    /// 8 exact σ a pixel up to 512² pixels (all frames), then fewer, so
+    /// that the map's searches stay near [`MAP_SEARCHES`]: 2 a pixel at
+    /// 1024², 1 at 1080p and beyond; without a declared order, 8 a pixel
+    /// by the hash at any size.
+    #[test]
+    fn the_maps_share_shrinks_with_the_film() {
+        let share = |w: u32, h: u32, frames: u32, order: Order| {
+            let mut hd = Header::still(w, h, 64, order);
+            hd.frames = frames;
+            hd.sample_count = w as u64 * h as u64 * frames as u64 * 64;
+            ExactSigma::for_map(&hd).share()
+        };
+        let pass = Order::PassMajor;
+        assert_eq!(share(128, 128, 1, pass), Some(8));
+        assert_eq!(share(512, 512, 1, pass), Some(8));
+        assert_eq!(share(1024, 1024, 1, pass), Some(32));
+        assert_eq!(share(1920, 1080, 1, pass), Some(64));
+        assert_eq!(share(3840, 2160, 1, pass), Some(64));
+        assert_eq!(share(512, 512, 8, Order::PixelMajor), Some(64));
+        assert_eq!(share(1920, 1080, 1, Order::Unspecified), Some(8));
+        for (w, h) in [(128, 128), (1024, 1024), (1920, 1080)] {
+            let picks = (w * h) as u64 * 64 / share(w, h, 1, pass).unwrap() as u64;
+            assert!(
+                picks <= MAP_SEARCHES.max((w * h) as u64),
+                "{w} × {h}: {picks}"
+            );
         }
     }
 
