@@ -81,53 +81,87 @@ impl Stats {
     }
 }
 
-/// What the t-test reads of a pixel.
-#[derive(Clone, Copy, Debug)]
-struct Test {
-    n: u32,
-    y_mean: [f64; 3],
+/// What the window reads of every pixel, one array per field: a run of a
+/// row's pixels is one slice of each, so the window's loop along the run
+/// runs in vector registers.
+struct Fields {
+    n: Vec<u32>,
+    /// Mean of the samples.
+    mean: [Vec<f64>; 3],
+    /// Mean of the transformed samples.
+    y_mean: [Vec<f64>; 3],
     /// [`Stats::se2`].
-    se2: [f64; 3],
+    se2: [Vec<f64>; 3],
     /// Σ over the channels of `se2`: how noisy the pixel's mean is.
-    spread: f64,
+    spread: Vec<f64>,
+    /// [`spread_limits`].
+    limit: Vec<f64>,
 }
 
-impl Test {
-    fn of(s: &Stats) -> Test {
-        let se2 = s.se2();
-        Test {
-            n: s.n,
-            y_mean: s.y_mean,
+impl Fields {
+    /// What the test reads of each pixel, made once: s²/n would otherwise
+    /// be divided out again for each of the (2R + 1)² pixels around it.
+    fn new(stats: Vec<Stats>, w: usize, ht: usize) -> Fields {
+        let channel = |f: &dyn Fn(&Stats) -> [f64; 3]| -> [Vec<f64>; 3] {
+            std::array::from_fn(|c| stats.iter().map(|s| f(s)[c]).collect())
+        };
+        let se2 = channel(&|s| s.se2());
+        let spread: Vec<f64> = (0..stats.len())
+            .map(|px| se2.iter().map(|c| c[px]).sum())
+            .collect();
+        let n: Vec<u32> = stats.iter().map(|s| s.n).collect();
+        let limit = spread_limits(&n, &spread, w, ht);
+        Fields {
+            mean: channel(&|s| s.mean),
+            y_mean: channel(&|s| s.y_mean),
+            n,
             se2,
-            spread: se2.iter().sum(),
+            spread,
+            limit,
         }
+    }
+
+    /// Whether pixels p and q (p with two samples or more) average each
+    /// other: q has two samples or more, neither is far noisier
+    /// ([`NOISIER`]), and the test passes on every channel, as [`agree`]
+    /// decides it.
+    fn compatible(&self, p: usize, q: usize, k: &Kernel) -> bool {
+        let (spread, limit) = (&self.spread, &self.limit);
+        if self.n[q] < 2 || spread[q] > limit[p] || spread[p] > limit[q] {
+            return false;
+        }
+        let df = (self.n[p] + self.n[q] - 2) as usize;
+        (0..3).fold(true, |all, c| {
+            let (y, se2) = (&self.y_mean[c], &self.se2[c]);
+            all & agree(y[p], y[q], se2[p] + se2[q], k.t[df], k.t2[df])
+        })
     }
 }
 
 /// Per pixel, the largest spread a pixel it averages with may have:
 /// [`NOISIER`] × the larger of the pixel's spread and the median spread of
 /// its 3 × 3 neighbourhood (same frame, pixels with two samples or more).
-fn spread_limits(tests: &[Test], w: usize, ht: usize) -> Vec<f64> {
-    let mut limit = vec![0.0; tests.len()];
+fn spread_limits(n: &[u32], spread: &[f64], w: usize, ht: usize) -> Vec<f64> {
+    let mut limit = vec![0.0; n.len()];
     limit.par_iter_mut().enumerate().for_each(|(px, l)| {
         let (frame, i) = (px / (w * ht), px % (w * ht));
         let (x, y) = (i % w, i / w);
         let base = frame * w * ht;
         let mut around = [0.0f64; 9];
-        let mut n = 0;
+        let mut count = 0;
         for ny in y.saturating_sub(1)..(y + 2).min(ht) {
             for nx in x.saturating_sub(1)..(x + 2).min(w) {
-                let t = &tests[base + ny * w + nx];
-                if t.n >= 2 {
-                    around[n] = t.spread;
-                    n += 1;
+                let q = base + ny * w + nx;
+                if n[q] >= 2 {
+                    around[count] = spread[q];
+                    count += 1;
                 }
             }
         }
-        let around = &mut around[..n];
+        let around = &mut around[..count];
         around.sort_by(f64::total_cmp);
-        let median = around.get(n / 2).copied().unwrap_or(0.0);
-        *l = NOISIER * tests[px].spread.max(median);
+        let median = around.get(count / 2).copied().unwrap_or(0.0);
+        *l = NOISIER * spread[px].max(median);
     });
     limit
 }
@@ -173,25 +207,51 @@ fn t_quantile(p: f64, df: f64) -> f64 {
         + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * df.powi(3))
 }
 
-/// Whether two pixels' transformed means agree on channel `c`:
-/// |ȳ_p − ȳ_q| ≤ t·√(s_p²/n_p + s_q²/n_q), exactly as written. The squares
-/// decide first, without the square root, wherever they are clear of the
-/// boundary by far more than the rounding of either form (a relative
-/// 10⁻¹², against about 10⁻¹⁵), and in the normal range; the written form
-/// decides the rest, so the result is the written form's, bit for bit.
+/// Whether two pixels' transformed means ȳ_p, ȳ_q agree on a channel,
+/// given s = s_p²/n_p + s_q²/n_q: |ȳ_p − ȳ_q| ≤ t·√s, exactly as written.
+/// The squares decide first, without the square root, wherever they are
+/// clear of the boundary by far more than the rounding of either form (a
+/// relative [`MARGIN`], against about 10⁻¹⁵), and in the normal range
+/// ([`TINY`]); the written form decides the rest, so the result is the
+/// written form's, bit for bit.
 #[inline]
-fn agree(p: &Test, q: &Test, c: usize, crit: f64, crit2: f64) -> bool {
-    const MARGIN: f64 = 1e-12;
-    let d = (p.y_mean[c] - q.y_mean[c]).abs();
-    let s = p.se2[c] + q.se2[c];
+fn agree(y_p: f64, y_q: f64, s: f64, crit: f64, crit2: f64) -> bool {
+    let d = (y_p - y_q).abs();
     let bound2 = crit2 * s;
     let d2 = d * d;
     let (inside, outside) = (d2 < bound2 * (1.0 - MARGIN), d2 > bound2 * (1.0 + MARGIN));
     // Which side is not predictable; whether either is clear nearly always is.
-    if bound2 > 1e-290 && (inside | outside) {
+    if bound2 > TINY && (inside | outside) {
         inside
     } else {
         d <= crit * s.sqrt()
+    }
+}
+
+/// [`agree`]'s margin around the boundary, relative.
+const MARGIN: f64 = 1e-12;
+/// Below this t²·s the squares may have lost bits: [`agree`] takes the
+/// written form.
+const TINY: f64 = 1e-290;
+
+/// The window's constants.
+struct Kernel {
+    /// t(α/2, ν) for ν = 0 … 2 × the largest n (one entry per ν).
+    t: Vec<f64>,
+    t2: Vec<f64>,
+    /// The spatial Gaussian at each offset 0 … R along an axis.
+    spatial: [f64; RADIUS + 1],
+}
+
+impl Kernel {
+    fn new(largest: u32) -> Kernel {
+        let t: Vec<f64> = (0..=2 * largest as usize)
+            .map(|df| t_quantile(ALPHA / 2.0, df.max(1) as f64))
+            .collect();
+        let t2 = t.iter().map(|t| t * t).collect();
+        let sigma = RADIUS as f64 / 2.0;
+        let spatial = std::array::from_fn(|d| (-((d * d) as f64) / (2.0 * sigma * sigma)).exp());
+        Kernel { t, t2, spatial }
     }
 }
 
@@ -199,67 +259,315 @@ fn agree(p: &Test, q: &Test, c: usize, crit: f64, crit2: f64) -> bool {
 /// the accepted ones.
 pub fn denoise(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool) -> Image {
     let (w, ht) = (h.width as usize, h.height as usize);
+    let stats = stats_of(records, h, keep);
+    let kernel = Kernel::new(stats.iter().map(|s| s.n).max().unwrap_or(0));
+    window(&Fields::new(stats, w, ht), &kernel, h)
+}
+
+/// Every pixel's mean of its window's compatible pixels.
+fn window(fields: &Fields, kernel: &Kernel, h: &Header) -> Image {
+    let (w, ht) = (h.width as usize, h.height as usize);
+    let mut img = Image::for_header(h);
+    img.data
+        .par_chunks_mut(w)
+        .enumerate()
+        .for_each(|(row, out)| {
+            let (base, y) = ((row / ht) * w * ht, row % ht);
+            for (r, out) in out.chunks_mut(RUN).enumerate() {
+                let x0 = r * RUN;
+                window_run(fields, kernel, (w, ht), (base, y), x0..x0 + out.len(), out);
+            }
+        });
+    img
+}
+
+/// Every pixel's statistics of the valid samples `keep(i)` picks, in
+/// file order.
+fn stats_of(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool) -> Vec<Stats> {
     let mut stats = vec![Stats::default(); h.pixels() * h.frames as usize];
     for (i, r) in records.iter().enumerate() {
         if r.validity(h) == Validity::Valid && keep(i) {
             stats[r.pixel_index(h)].add([r.r as f64, r.g as f64, r.b as f64]);
         }
     }
-    // t(α/2, ν) for ν = 0 … 2 × the largest n (one entry per ν).
-    let largest = stats.iter().map(|s| s.n).max().unwrap_or(0) as usize;
-    let t: Vec<f64> = (0..=2 * largest)
-        .map(|df| t_quantile(ALPHA / 2.0, df.max(1) as f64))
-        .collect();
-    let t2: Vec<f64> = t.iter().map(|t| t * t).collect();
-    let sigma = RADIUS as f64 / 2.0;
-    let spatial: Vec<f64> = (0..=RADIUS)
-        .map(|d| (-((d * d) as f64) / (2.0 * sigma * sigma)).exp())
-        .collect();
-    // What the test reads of each pixel, made once: s²/n would otherwise
-    // be divided out again for each of the (2R + 1)² pixels around it.
-    // The tests take the statistics' place (an in-place collect), the
-    // means moved out first.
-    let means: Vec<[f64; 3]> = stats.iter().map(|s| s.mean).collect();
-    let tests: Vec<Test> = stats.into_iter().map(|s| Test::of(&s)).collect();
-    let limits = spread_limits(&tests, w, ht);
-    let mut img = Image::for_header(h);
-    img.data.par_iter_mut().enumerate().for_each(|(px, out)| {
-        let (tp, limit) = (&tests[px], limits[px]);
-        if tp.n == 0 {
-            return;
-        }
-        if tp.n < 2 {
-            *out = means[px];
-            return;
-        }
-        let (frame, i) = (px / (w * ht), px % (w * ht));
-        let (x, y) = (i % w, i / w);
-        let base = frame * w * ht;
-        let (mut sum, mut weight) = ([0.0f64; 3], 0.0f64);
-        for ny in y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(ht) {
-            let wy = spatial[ny.abs_diff(y)];
-            let row = base + ny * w;
-            for nx in x.saturating_sub(RADIUS)..(x + RADIUS + 1).min(w) {
-                let q_px = row + nx;
-                let tq = &tests[q_px];
-                if tq.n < 2 || tq.spread > limit || tp.spread > limits[q_px] {
-                    continue;
+    stats
+}
+
+/// Pixels per run of a row that the window takes at once: the run's
+/// fields and its neighbours' stay in the core's cache over the window's
+/// (2R + 1)² offsets.
+const RUN: usize = 256;
+
+/// The output of pixels `xs` of row y of the frame whose first pixel is
+/// `base`, into `out`: each pixel's mean of its compatible neighbours,
+/// weighted by sample count and the spatial Gaussian. The window is taken
+/// offset by offset in its order (row by row, left to right), each offset
+/// for the whole run, so each pixel's sums add the same terms in the same
+/// order as a loop over its own window; a neighbour left out adds 0,
+/// which changes no sum (a sum that starts at +0 is never −0, and a mean
+/// is finite).
+fn window_run(
+    f: &Fields,
+    k: &Kernel,
+    (w, ht): (usize, usize),
+    (base, y): (usize, usize),
+    xs: std::ops::Range<usize>,
+    out: &mut [[f64; 3]],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2 (checked just above).
+        return unsafe { window_run_avx2(f, k, (w, ht), (base, y), xs, out) };
+    }
+    window_run_portable(f, k, (w, ht), (base, y), xs, out)
+}
+
+/// [`window_run`] compiled for AVX2: the same code and the same
+/// arithmetic (no fused multiply-add), in wider vectors.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn window_run_avx2(
+    f: &Fields,
+    k: &Kernel,
+    (w, ht): (usize, usize),
+    (base, y): (usize, usize),
+    xs: std::ops::Range<usize>,
+    out: &mut [[f64; 3]],
+) {
+    window_run_portable(f, k, (w, ht), (base, y), xs, out)
+}
+
+#[inline(always)]
+fn window_run_portable(
+    f: &Fields,
+    k: &Kernel,
+    (w, ht): (usize, usize),
+    (base, y): (usize, usize),
+    xs: std::ops::Range<usize>,
+    out: &mut [[f64; 3]],
+) {
+    let mut sum = [[0.0f64; RUN]; 3];
+    let mut weight = [0.0f64; RUN];
+    let mut wq = [0.0f64; RUN];
+    let r = RADIUS as isize;
+    for ny in y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(ht) {
+        let wy = k.spatial[ny.abs_diff(y)];
+        for dx in -r..=r {
+            let ws = wy * k.spatial[dx.unsigned_abs()];
+            // The run's pixels whose neighbour at x + dx is on the film.
+            let lo = xs.start.max((-dx).max(0) as usize);
+            let hi = xs.end.min((w as isize - dx).clamp(0, w as isize) as usize);
+            if lo >= hi {
+                continue;
+            }
+            let p = base + y * w + lo;
+            let q = (base + ny * w + lo).wrapping_add_signed(dx);
+            let slots = lo - xs.start..hi - xs.start;
+            let wq = &mut wq[slots.clone()];
+            if pair_weights(f, k, ws, p, q, wq) {
+                for (i, wq) in wq.iter_mut().enumerate() {
+                    let same = f.n[p + i] >= 2 && f.compatible(p + i, q + i, k);
+                    *wq = ws * f.n[q + i] as f64 * f64::from(u8::from(same));
                 }
-                let df = (tp.n + tq.n - 2) as usize;
-                let same = (0..3).fold(true, |all, c| all & agree(tp, tq, c, t[df], t2[df]));
-                // Added as 0 where the test fails (a mean is finite, so
-                // 0 · m adds nothing): no branch on the test's outcome.
-                let wq = wy * spatial[nx.abs_diff(x)] * tq.n as f64 * f64::from(u8::from(same));
-                for (s, m) in sum.iter_mut().zip(means[q_px]) {
+            }
+            for (sum, mean) in sum.iter_mut().zip(&f.mean) {
+                let m = &mean[q..q + wq.len()];
+                for ((s, wq), m) in sum[slots.clone()].iter_mut().zip(&*wq).zip(m) {
                     *s += wq * m;
                 }
-                weight += wq;
+            }
+            for (s, wq) in weight[slots].iter_mut().zip(&*wq) {
+                *s += wq;
             }
         }
-        // p is always compatible with itself.
-        *out = sum.map(|s| s / weight);
-    });
-    img
+    }
+    let p = base + y * w + xs.start;
+    for (i, out) in out.iter_mut().enumerate() {
+        let n = f.n[p + i];
+        if n >= 2 {
+            // p is always compatible with itself.
+            *out = std::array::from_fn(|c| sum[c][i] / weight[i]);
+        } else if n == 1 {
+            *out = std::array::from_fn(|c| f.mean[c][p + i]);
+        }
+    }
+}
+
+/// Each pair (p + i, q + i)'s weight into `wq`: `ws` × q's sample count
+/// where they are compatible ([`Fields::compatible`]), else 0; the weight
+/// of a pixel p + i with fewer than two samples is never read. Decided
+/// here where the squares are clear of [`agree`]'s boundary, or where
+/// s = 0 (then the written form is d ≤ 0); true when some pair is
+/// neither, which the caller then decides with [`Fields::compatible`].
+#[inline(always)]
+fn pair_weights(f: &Fields, k: &Kernel, ws: f64, p: usize, q: usize, wq: &mut [f64]) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2 (checked just above).
+        return unsafe { avx2::pair_weights(f, k, ws, p, q, wq) };
+    }
+    pair_weights_portable(f, k, ws, p, q, wq, 0)
+}
+
+/// [`pair_weights`] from pair `from` on, one pair at a time.
+#[inline(always)]
+fn pair_weights_portable(
+    f: &Fields,
+    k: &Kernel,
+    ws: f64,
+    p: usize,
+    q: usize,
+    wq: &mut [f64],
+    from: usize,
+) -> bool {
+    let last = k.t2.len() - 1;
+    let mut undecided = false;
+    for (i, wq) in wq.iter_mut().enumerate().skip(from) {
+        let (p, q) = (p + i, q + i);
+        let (np, nq) = (f.n[p], f.n[q]);
+        let left_out =
+            (np < 2) | (nq < 2) | (f.spread[q] > f.limit[p]) | (f.spread[p] > f.limit[q]);
+        let valid = !left_out;
+        let crit2 = k.t2[((np + nq).saturating_sub(2) as usize).min(last)];
+        let mut same = valid;
+        for c in 0..3 {
+            let d = (f.y_mean[c][p] - f.y_mean[c][q]).abs();
+            let s = f.se2[c][p] + f.se2[c][q];
+            let bound2 = crit2 * s;
+            let d2 = d * d;
+            let (inside, outside) = (d2 < bound2 * (1.0 - MARGIN), d2 > bound2 * (1.0 + MARGIN));
+            let clear = (bound2 > TINY) & (inside | outside);
+            let zero = s == 0.0;
+            same &= (clear & inside) | (!clear & zero & (d <= 0.0));
+            undecided |= valid & !clear & !zero;
+        }
+        *wq = ws * nq as f64 * f64::from(u8::from(same));
+    }
+    undecided
+}
+
+/// [`pair_weights_portable`] four pairs at a time in AVX2 registers: the
+/// same comparisons (ordered, as Rust's on f64) and the same products in
+/// the same order, so the same bits.
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::{Fields, Kernel, MARGIN, TINY};
+    use std::arch::x86_64::*;
+
+    #[target_feature(enable = "avx2")]
+    pub(super) fn pair_weights(
+        f: &Fields,
+        k: &Kernel,
+        ws: f64,
+        p: usize,
+        q: usize,
+        wq: &mut [f64],
+    ) -> bool {
+        let len = wq.len();
+        // Sample counts index t² as 32-bit integers.
+        let last = k.t2.len() - 1;
+        if last > i32::MAX as usize {
+            return super::pair_weights_portable(f, k, ws, p, q, wq, 0);
+        }
+        let (fields, end) = (Slices::new(f, p, q, len), len / 4 * 4);
+        let mut undecided = _mm256_setzero_pd();
+        for i in (0..end).step_by(4) {
+            // SAFETY: i + 4 ≤ len, the length of every slice read.
+            let (w, u) = unsafe { four(&fields, k, ws, last as i32, i) };
+            wq[i..i + 4].copy_from_slice(&w);
+            undecided = _mm256_or_pd(undecided, u);
+        }
+        let tail = super::pair_weights_portable(f, k, ws, p, q, wq, end);
+        _mm256_movemask_pd(undecided) != 0 || tail
+    }
+
+    /// The run's fields: p's and q's, `len` pixels each.
+    struct Slices<'a> {
+        np: &'a [u32],
+        nq: &'a [u32],
+        sp: &'a [f64],
+        sq: &'a [f64],
+        lp: &'a [f64],
+        lq: &'a [f64],
+        yp: [&'a [f64]; 3],
+        yq: [&'a [f64]; 3],
+        ep: [&'a [f64]; 3],
+        eq: [&'a [f64]; 3],
+    }
+
+    impl<'a> Slices<'a> {
+        fn new(f: &'a Fields, p: usize, q: usize, len: usize) -> Slices<'a> {
+            let (p, q) = (p..p + len, q..q + len);
+            Slices {
+                np: &f.n[p.clone()],
+                nq: &f.n[q.clone()],
+                sp: &f.spread[p.clone()],
+                sq: &f.spread[q.clone()],
+                lp: &f.limit[p.clone()],
+                lq: &f.limit[q.clone()],
+                yp: std::array::from_fn(|c| &f.y_mean[c][p.clone()]),
+                yq: std::array::from_fn(|c| &f.y_mean[c][q.clone()]),
+                ep: std::array::from_fn(|c| &f.se2[c][p.clone()]),
+                eq: std::array::from_fn(|c| &f.se2[c][q.clone()]),
+            }
+        }
+    }
+
+    /// Pairs i … i + 3: their weights, and a mask of those undecided.
+    ///
+    /// # Safety
+    /// AVX2, and i + 4 ≤ the slices' length.
+    #[target_feature(enable = "avx2")]
+    unsafe fn four(s: &Slices, k: &Kernel, ws: f64, last: i32, i: usize) -> ([f64; 4], __m256d) {
+        // SAFETY: every load reads 4 elements from i, within the slices.
+        unsafe {
+            let ld = |v: &[f64]| _mm256_loadu_pd(v.as_ptr().add(i));
+            let ldn = |v: &[u32]| _mm_loadu_si128(v.as_ptr().add(i).cast());
+            let (np, nq) = (ldn(s.np), ldn(s.nq));
+            // Each 32-bit comparison widened to a 64-bit lane's mask.
+            let two_each = _mm_and_si128(
+                _mm_cmpgt_epi32(np, _mm_set1_epi32(1)),
+                _mm_cmpgt_epi32(nq, _mm_set1_epi32(1)),
+            );
+            let mut valid = _mm256_castsi256_pd(_mm256_cvtepi32_epi64(two_each));
+            let noisier_q = _mm256_cmp_pd::<_CMP_GT_OQ>(ld(s.sq), ld(s.lp));
+            let noisier_p = _mm256_cmp_pd::<_CMP_GT_OQ>(ld(s.sp), ld(s.lq));
+            valid = _mm256_andnot_pd(_mm256_or_pd(noisier_q, noisier_p), valid);
+            let df = _mm_sub_epi32(_mm_add_epi32(np, nq), _mm_set1_epi32(2));
+            let df = _mm_min_epi32(_mm_max_epi32(df, _mm_setzero_si128()), _mm_set1_epi32(last));
+            let crit2 = _mm256_i32gather_pd::<8>(k.t2.as_ptr(), df);
+            let (below, above) = (_mm256_set1_pd(1.0 - MARGIN), _mm256_set1_pd(1.0 + MARGIN));
+            let (zero, tiny) = (_mm256_setzero_pd(), _mm256_set1_pd(TINY));
+            let sign = _mm256_set1_pd(-0.0);
+            let mut same = valid;
+            let mut undecided = zero;
+            for c in 0..3 {
+                let d = _mm256_andnot_pd(sign, _mm256_sub_pd(ld(s.yp[c]), ld(s.yq[c])));
+                let sum = _mm256_add_pd(ld(s.ep[c]), ld(s.eq[c]));
+                let bound2 = _mm256_mul_pd(crit2, sum);
+                let d2 = _mm256_mul_pd(d, d);
+                let inside = _mm256_cmp_pd::<_CMP_LT_OQ>(d2, _mm256_mul_pd(bound2, below));
+                let outside = _mm256_cmp_pd::<_CMP_GT_OQ>(d2, _mm256_mul_pd(bound2, above));
+                let normal = _mm256_cmp_pd::<_CMP_GT_OQ>(bound2, tiny);
+                let clear = _mm256_and_pd(normal, _mm256_or_pd(inside, outside));
+                let s_zero = _mm256_cmp_pd::<_CMP_EQ_OQ>(sum, zero);
+                let d_zero = _mm256_cmp_pd::<_CMP_LE_OQ>(d, zero);
+                let agree = _mm256_or_pd(
+                    _mm256_and_pd(clear, inside),
+                    _mm256_andnot_pd(clear, _mm256_and_pd(s_zero, d_zero)),
+                );
+                same = _mm256_and_pd(same, agree);
+                let open = _mm256_andnot_pd(_mm256_or_pd(clear, s_zero), valid);
+                undecided = _mm256_or_pd(undecided, open);
+            }
+            let n = _mm256_cvtepi32_pd(nq);
+            let one = _mm256_and_pd(same, _mm256_set1_pd(1.0));
+            let w = _mm256_mul_pd(_mm256_mul_pd(_mm256_set1_pd(ws), n), one);
+            let mut out = [0.0; 4];
+            _mm256_storeu_pd(out.as_mut_ptr(), w);
+            (out, undecided)
+        }
+    }
 }
 
 #[cfg(test)]
@@ -336,18 +644,11 @@ mod tests {
 
     /// The squared pre-test decides as the written form does, on random
     /// pairs and on pairs built at the boundary, one ulp either side, in
-    /// the subnormal range and at zero spread.
+    /// the subnormal range and at zero spread; so does the window's loop
+    /// over a run ([`pair_weights`]) wherever it decides a pair itself.
     #[test]
     fn agree_is_the_written_test() {
-        let written = |p: &Test, q: &Test, c: usize, crit: f64| {
-            (p.y_mean[c] - q.y_mean[c]).abs() <= crit * (p.se2[c] + q.se2[c]).sqrt()
-        };
-        let test = |y: f64, se2: f64| Test {
-            n: 8,
-            y_mean: [y; 3],
-            se2: [se2; 3],
-            spread: 3.0 * se2,
-        };
+        let written = |d: f64, s: f64, crit: f64| d.abs() <= crit * s.sqrt();
         let mut state = 0x9e37_79b9_7f4a_7c15u64;
         let mut next = || {
             state ^= state << 13;
@@ -356,7 +657,7 @@ mod tests {
             (state >> 11) as f64 / (1u64 << 53) as f64
         };
         // Both outcomes occur at the boundary: the cases test something.
-        let mut outcomes = [0usize; 2];
+        let (mut outcomes, mut by_run) = ([0usize; 2], 0);
         for i in 0..200_000 {
             let crit = 1.0 + 3.0 * next();
             let scale = 10f64.powi((next() * 40.0) as i32 - 20);
@@ -375,19 +676,162 @@ mod tests {
                 (0.0, 0.0, d),
                 (0.0, 0.0, 0.0),
             ] {
-                let (p, q) = (test(0.0, sp), test(d, sq));
-                let want = written(&p, &q, 0, crit);
+                let want = written(d, sp + sq, crit);
                 assert_eq!(
-                    agree(&p, &q, 0, crit, crit * crit),
+                    agree(0.0, d, sp + sq, crit, crit * crit),
                     want,
-                    "{p:?} {q:?} {crit}"
+                    "{d} {sp} {sq} {crit}"
                 );
+                // The same pair as pixels of 8 samples, four times in a
+                // run (in vector registers where the CPU has them) and
+                // once pair by pair.
+                let f = Fields {
+                    n: vec![8; 8],
+                    mean: std::array::from_fn(|_| vec![0.0; 8]),
+                    y_mean: std::array::from_fn(|_| [[0.0; 4], [d; 4]].concat()),
+                    se2: std::array::from_fn(|_| [[sp; 4], [sq; 4]].concat()),
+                    spread: vec![0.0; 8],
+                    limit: vec![f64::INFINITY; 8],
+                };
+                let k = Kernel {
+                    t: vec![crit; 15],
+                    t2: vec![crit * crit; 15],
+                    spatial: [1.0; RADIUS + 1],
+                };
+                let weight = if want { 8.0 } else { 0.0 };
+                let mut wq = [0.0; 4];
+                if !pair_weights(&f, &k, 1.0, 0, 4, &mut wq) {
+                    assert_eq!(wq, [weight; 4], "{d} {sp} {sq} {crit}");
+                    by_run += 1;
+                }
+                if !pair_weights_portable(&f, &k, 1.0, 0, 4, &mut wq[..1], 0) {
+                    assert_eq!(wq[0], weight, "{d} {sp} {sq} {crit}");
+                }
+                assert_eq!(f.compatible(0, 4, &k), want);
                 if i % 4 != 0 {
                     outcomes[usize::from(want)] += 1;
                 }
             }
         }
         assert!(outcomes[0] > 1000 && outcomes[1] > 1000, "{outcomes:?}");
+        assert!(by_run > 400_000, "{by_run} pairs decided in the run");
+    }
+
+    /// The window as its definition says it, one output pixel at a time:
+    /// the compatible neighbours' means, each weighted by its count and
+    /// the spatial Gaussian, the others skipped.
+    fn denoise_per_pixel(f: &Fields, k: &Kernel, w: usize, ht: usize) -> Vec<[f64; 3]> {
+        (0..f.n.len())
+            .map(|px| {
+                let n = f.n[px];
+                if n < 2 {
+                    return std::array::from_fn(|c| if n == 1 { f.mean[c][px] } else { 0.0 });
+                }
+                let (base, i) = (px - px % (w * ht), px % (w * ht));
+                let (x, y) = (i % w, i / w);
+                let (mut sum, mut weight) = ([0.0f64; 3], 0.0f64);
+                for ny in y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(ht) {
+                    for nx in x.saturating_sub(RADIUS)..(x + RADIUS + 1).min(w) {
+                        let q = base + ny * w + nx;
+                        if !f.compatible(px, q, k) {
+                            continue;
+                        }
+                        let wq = k.spatial[ny.abs_diff(y)] * k.spatial[nx.abs_diff(x)];
+                        let wq = wq * f.n[q] as f64;
+                        for (c, s) in sum.iter_mut().enumerate() {
+                            *s += wq * f.mean[c][q];
+                        }
+                        weight += wq;
+                    }
+                }
+                sum.map(|s| s / weight)
+            })
+            .collect()
+    }
+
+    /// The window taken offset by offset along runs of a row gives each
+    /// pixel the bits of its own window's loop: films narrower than the
+    /// window and wider than a run, frames, pixels with 0, 1 and many
+    /// samples, zero-variance pixels (equal and unequal), outliers.
+    #[test]
+    fn the_window_by_runs_is_the_per_pixel_window() {
+        let mut unit = crate::synth::test_units(7);
+        for (w, ht, frames) in [(1, 1, 1), (5, 3, 2), (19, 23, 1), (2 * RUN + 37, 4, 2)] {
+            let mut h = test_header(w as u32, ht as u32);
+            h.frames = frames;
+            let mut recs = Vec::new();
+            for px in 0..w * ht * frames as usize {
+                let (f, i) = (px / (w * ht), px % (w * ht));
+                let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+                let kind = (unit() * 8.0) as usize;
+                let n = [0, 1, 2, 8, 8, 8, 16, 3][kind];
+                let level = if x < w as f32 / 2.0 { 1.0 } else { 4.0 };
+                for s in 0..n {
+                    let v = match kind {
+                        // Zero variance: one level, or the level of a
+                        // neighbouring column.
+                        3 => level,
+                        4 => level + (x as usize % 2) as f32,
+                        _ if unit() < 0.02 => 300.0 * unit() as f32,
+                        _ => level * (0.5 + unit() as f32),
+                    };
+                    let c = [v, v * (0.5 + 0.1 * s as f32), 0.0];
+                    recs.push(Record::new(x, y, f as f32 + 0.5, c));
+                }
+            }
+            let img = denoise(&recs, &h, |i| i % 31 != 5);
+            let stats = stats_of(&recs, &h, |i| i % 31 != 5);
+            let k = Kernel::new(stats.iter().map(|s| s.n).max().unwrap_or(0));
+            let want = denoise_per_pixel(&Fields::new(stats, w, ht), &k, w, ht);
+            for (px, (got, want)) in img.data.iter().zip(&want).enumerate() {
+                let bits = |v: &[f64; 3]| v.map(f64::to_bits);
+                assert_eq!(bits(got), bits(want), "{w} × {ht} × {frames}, pixel {px}");
+            }
+        }
+    }
+
+    /// Where the squares cannot decide (t²·s in the subnormal range, or
+    /// a pair on the boundary itself), the window takes the written form,
+    /// pair by pair, as the per-pixel window does.
+    #[test]
+    fn the_window_decides_the_pairs_its_run_cannot() {
+        let (w, ht) = (40, 3);
+        let crit = 2.0f64;
+        let k = Kernel {
+            t: vec![crit; 64],
+            t2: vec![crit * crit; 64],
+            spatial: Kernel::new(1).spatial,
+        };
+        let px = w * ht;
+        let tiny: f64 = 1e-300;
+        // y at 0, 1 or 2 times exactly t·√(2·se2): on the boundary, subnormal.
+        let on_edge = crit * (2.0 * tiny).sqrt();
+        let y: Vec<f64> = (0..px).map(|i| (i % 3) as f64 * on_edge).collect();
+        let f = Fields {
+            n: vec![8; px],
+            mean: std::array::from_fn(|c| (0..px).map(|i| (i * (c + 1)) as f64).collect()),
+            y_mean: std::array::from_fn(|_| y.clone()),
+            se2: std::array::from_fn(|_| vec![tiny; px]),
+            spread: vec![0.0; px],
+            limit: vec![f64::INFINITY; px],
+        };
+        let got = window(&f, &k, &test_header(w as u32, ht as u32));
+        let want = denoise_per_pixel(&f, &k, w, ht);
+        for (px, (got, want)) in got.data.iter().zip(&want).enumerate() {
+            assert_eq!(got.map(f64::to_bits), want.map(f64::to_bits), "pixel {px}");
+        }
+        // Levels one apart agree and two apart do not: the window left
+        // some pairs out, so it is not the mean of the whole window.
+        let all = denoise_per_pixel(
+            &Fields {
+                y_mean: std::array::from_fn(|_| vec![0.0; px]),
+                ..f
+            },
+            &k,
+            w,
+            ht,
+        );
+        assert!(got.data.iter().zip(&all).any(|(g, a)| g != a));
     }
 
     /// An outlier the caller leaves out does not move its pixel.
