@@ -185,11 +185,28 @@ impl Strata {
             return;
         }
         if self.pass_major {
+            // A frame's pixels by residue, made when a pass is walked over
+            // most of its length (the σ map's walk over the whole dump).
+            let mut residues: Option<(u64, Residues)> = None;
             for pass in recs.start / self.pixels..=(recs.end - 1) / self.pixels {
                 let (frame, s) = (pass / self.spp, pass % self.spp);
                 let residue = (n - s % n) % n;
                 let first = pass * self.pixels;
                 let (lo, hi) = (recs.start.max(first), recs.end.min(first + self.pixels));
+                if (hi - lo) * 4 >= self.pixels && self.pixels <= u32::MAX as u64 {
+                    if residues.as_ref().is_none_or(|r| r.0 != frame) {
+                        residues = Some((frame, Residues::new(self, frame)));
+                    }
+                    let bucket = residues.as_ref().expect("just made").1.bucket(residue);
+                    let from = bucket.partition_point(|&p| (p as u64) < lo - first);
+                    for &p in bucket[from..]
+                        .iter()
+                        .take_while(|&&p| (p as u64) < hi - first)
+                    {
+                        f(first + p as u64);
+                    }
+                    continue;
+                }
                 for rec in lo..hi {
                     if mix(frame * self.pixels + rec - first) % n == residue {
                         f(rec);
@@ -206,6 +223,41 @@ impl Strata {
                 }
             }
         }
+    }
+}
+
+/// One frame's pixels (within the frame) grouped by mix(pixel) mod n,
+/// ascending within each group: a pass-major dump's pass picks one group.
+struct Residues {
+    /// Where each residue's pixels start in `pixels`; n + 1 entries.
+    starts: Vec<usize>,
+    pixels: Vec<u32>,
+}
+
+impl Residues {
+    fn new(s: Strata, frame: u64) -> Residues {
+        let n = s.n as usize;
+        let residue = |p: u64| (mix(frame * s.pixels + p) % n as u64) as usize;
+        let mut starts = vec![0usize; n + 1];
+        for p in 0..s.pixels {
+            starts[residue(p) + 1] += 1;
+        }
+        for r in 0..n {
+            starts[r + 1] += starts[r];
+        }
+        let mut next = starts.clone();
+        let mut pixels = vec![0u32; s.pixels as usize];
+        for p in 0..s.pixels {
+            let r = residue(p);
+            pixels[next[r]] = p as u32;
+            next[r] += 1;
+        }
+        Residues { starts, pixels }
+    }
+
+    fn bucket(&self, residue: u64) -> &[u32] {
+        let r = residue as usize;
+        &self.pixels[self.starts[r]..self.starts[r + 1]]
     }
 }
 
