@@ -202,15 +202,19 @@ impl<'s, 'a> Estimators<'s, 'a> {
         if wanted(Piece::Robust) || wanted(Piece::Mon) {
             self.shared.groups();
         }
+        // The accepted samples' intervals and statmc read the same
+        // moments: one pass over the dump makes both.
+        let together = wanted(Piece::AcceptedInterval) && wanted(Piece::Statmc);
         // One piece a job: rayon would otherwise cut these few items into
-        // one run a thread, and two long pieces (the accepted samples'
-        // intervals and statmc, both a serial pass over the dump) would
-        // follow each other on one thread while the other idled.
+        // one run a thread, and two long pieces would follow each other on
+        // one thread while the other idled.
         Piece::ALL
             .par_iter()
             .with_max_len(1)
             .filter(|&&piece| wanted(piece))
             .for_each(|piece| match piece {
+                Piece::AcceptedInterval if together => {}
+                Piece::Statmc if together => self.accepted_interval_and_statmc(),
                 Piece::Robust => {
                     self.robust_images();
                 }
@@ -364,6 +368,25 @@ impl<'s, 'a> Estimators<'s, 'a> {
         })
     }
 
+    /// The accepted samples' intervals and statmc of them, from one pass
+    /// over the dump for both: as [`Self::accepted_interval`] and
+    /// [`Self::statmc`] make them, each timed with the pass.
+    fn accepted_interval_and_statmc(&self) {
+        let decisions = self
+            .decisions
+            .expect("an image that needs the decisions is made with them");
+        let (records, h) = (self.shared.records, self.shared.header);
+        let (stats, s) =
+            timed(|| statmc::stats_of(records, h, |i| Decision::accepted(decisions[i])));
+        let ((interval, ti), (img, tw)) = crate::par::join(
+            || timed(|| confidence::from_moments(&stats, h, self.config.guide_z)),
+            || timed(|| statmc::denoise_stats(&stats, h)),
+        );
+        let _ = self.accepted_interval.set((interval, s + ti));
+        let seconds = self.core.replay_seconds + s + tw;
+        let _ = self.statmc.set((Arc::new(img), seconds));
+    }
+
     /// The accepted samples' intervals, made once, and their seconds.
     fn accepted_interval(&self) -> &(Interval, f64) {
         let decisions = self
@@ -494,6 +517,43 @@ mod tests {
                 .map(|p| p.0)
                 .collect()
         }
+    }
+
+    /// The accepted samples' intervals and statmc made together by
+    /// `prepare` are those each makes on its own: guided and
+    /// guided_oidn's hold read the one, statmc and guided the other.
+    #[test]
+    fn the_pieces_made_together_are_those_made_apart() {
+        let synth = crate::synth::SynthParams {
+            width: 23,
+            height: 9,
+            spp: 12,
+            firefly_fraction: 0.03,
+            ..crate::synth::SynthParams::default()
+        };
+        let (h, records): (Header, Vec<Record>) = (synth.header(), synth.records().collect());
+        let config = FilterConfig::DEFAULT;
+        let decisions: Vec<u8> = (0..records.len())
+            .map(|i| if i % 7 == 3 { Decision::Rejected } else { Decision::AcceptedStreaming } as u8)
+            .collect();
+        let rec = recon::reconstruct(&records, &h, config.recon.filter(), |i| i % 7 != 3);
+        let core = Core::new(rec, 0.0, 0.0);
+        let shared = Shared::new(&records, &h);
+        let made = |prepared: bool| {
+            let e = Estimators::new(&shared, &config, 1.0, &core).with_decisions(&decisions);
+            if prepared {
+                e.prepare(&[(Method::Guided, false), (Method::Statmc, false)]);
+                assert_eq!(
+                    e.made(),
+                    [Piece::Interval, Piece::AcceptedInterval, Piece::Statmc]
+                );
+            }
+            [Method::Guided, Method::Statmc].map(|m| e.image(m).unwrap().0.data.clone())
+        };
+        let bits = |v: [Vec<[f64; 3]>; 2]| {
+            v.map(|i| i.iter().map(|p| p.map(f64::to_bits)).collect::<Vec<_>>())
+        };
+        assert_eq!(bits(made(true)), bits(made(false)));
     }
 
     /// `prepare` can only make what [`Piece::of`] lists: every method's

@@ -19,8 +19,8 @@
 //! order, in f64: exact for any thread count, and with no cancellation
 //! when a pixel's samples are large and nearly equal (a light's 60 ± 10⁻⁶).
 
-use super::Image;
-use crate::dump::{Header, Record, Validity};
+use super::{Image, per_pixel};
+use crate::dump::{Header, Record};
 
 /// z of the interval: three standard errors.
 pub const Z: f64 = 3.0;
@@ -135,15 +135,21 @@ impl Interval {
 
 /// Running moments of one pixel (Welford).
 #[derive(Clone, Copy, Default)]
-struct Moments {
-    n: u32,
-    mean: [f64; 3],
+pub(crate) struct Moments {
+    pub(crate) n: u32,
+    pub(crate) mean: [f64; 3],
     /// Σ (x − x̄)², per channel.
     m2: [f64; 3],
 }
 
+impl AsRef<Moments> for Moments {
+    fn as_ref(&self) -> &Moments {
+        self
+    }
+}
+
 impl Moments {
-    fn add(&mut self, x: [f64; 3]) {
+    pub(crate) fn add(&mut self, x: [f64; 3]) {
         self.n += 1;
         let n = self.n as f64;
         for ((x, mean), m2) in x.into_iter().zip(&mut self.mean).zip(&mut self.m2) {
@@ -159,26 +165,31 @@ impl Moments {
     }
 }
 
-/// The confidence interval of every pixel's mean, at `z` standard errors.
+/// The confidence interval of every pixel's mean, at `z` standard errors,
+/// in one serial pass (the pipeline makes it beside the replay, whose
+/// threads it would otherwise hold up).
 pub fn interval(records: &[Record], h: &Header, z: f64) -> Interval {
-    interval_of(records, h, z, |_| true)
+    let moments = per_pixel::fold(records, h, 1, |_| true, Moments::add);
+    from_moments(&moments, h, z)
 }
 
 /// [`interval`] of the valid samples `keep(i)` picks (record i): the
-/// accepted ones, for [`super::guided`].
+/// accepted ones, for [`super::guided`]; on every thread of the pool.
 pub fn interval_of(
     records: &[Record],
     h: &Header,
     z: f64,
-    keep: impl Fn(usize) -> bool,
+    keep: impl Fn(usize) -> bool + Sync,
 ) -> Interval {
+    let bands = crate::par::current_num_threads();
+    let moments = per_pixel::fold(records, h, bands, keep, Moments::add);
+    from_moments(&moments, h, z)
+}
+
+/// The intervals from every pixel's moments of its samples.
+pub(crate) fn from_moments<M: AsRef<Moments>>(moments: &[M], h: &Header, z: f64) -> Interval {
     let (w, ht) = (h.width as usize, h.height as usize);
-    let mut moments = vec![Moments::default(); h.pixels() * h.frames as usize];
-    for (i, r) in records.iter().enumerate() {
-        if r.validity(h) == Validity::Valid && keep(i) {
-            moments[r.pixel_index(h)].add([r.r as f64, r.g as f64, r.b as f64]);
-        }
-    }
+    let moments: Vec<&Moments> = moments.iter().map(AsRef::as_ref).collect();
     // The standard error of each pixel's mean from its own samples alone.
     let own_se: Vec<[f64; 3]> = moments
         .iter()

@@ -9,6 +9,7 @@ pub mod groups;
 pub mod guided;
 pub mod median;
 pub mod mon;
+pub mod per_pixel;
 pub mod robust;
 pub mod rwmc;
 pub mod statmc;

@@ -35,8 +35,9 @@
 //! averaging with its neighbours. An addition to Sakai et al.
 //! (docs/RESULTS.md, "The guided image").
 
-use super::Image;
-use crate::dump::{Header, Record, Validity};
+use super::confidence::Moments;
+use super::{Image, per_pixel};
+use crate::dump::{Header, Record};
 use crate::par::prelude::*;
 
 /// The window's radius R, in pixels.
@@ -50,23 +51,28 @@ const ALPHA: f64 = 0.05;
 /// errors within 4× (docs/RESULTS.md, "The guided image").
 pub const NOISIER: f64 = 16.0;
 
-/// One pixel's statistics.
+/// One pixel's statistics: the moments of its samples, which the
+/// confidence interval of the same samples reads too, and those of their
+/// Box-Cox transform.
 #[derive(Clone, Copy, Default)]
-struct Stats {
-    n: u32,
-    /// Mean of the samples.
-    mean: [f64; 3],
+pub(crate) struct Stats {
+    x: Moments,
     /// Mean and Σ(y − ȳ)² of the Box-Cox transformed samples (Welford).
     y_mean: [f64; 3],
     y_m2: [f64; 3],
 }
 
+impl AsRef<Moments> for Stats {
+    fn as_ref(&self) -> &Moments {
+        &self.x
+    }
+}
+
 impl Stats {
     fn add(&mut self, x: [f64; 3]) {
-        self.n += 1;
-        let n = self.n as f64;
+        self.x.add(x);
+        let n = self.x.n as f64;
         for (c, x) in x.into_iter().enumerate() {
-            self.mean[c] += (x - self.mean[c]) / n;
             let y = box_cox(x);
             let d = y - self.y_mean[c];
             self.y_mean[c] += d / n;
@@ -76,7 +82,7 @@ impl Stats {
 
     /// s²/n of the transformed mean, per channel.
     fn se2(&self) -> [f64; 3] {
-        let n = self.n as f64;
+        let n = self.x.n as f64;
         self.y_m2.map(|m| m / (n - 1.0) / n)
     }
 }
@@ -101,7 +107,7 @@ struct Fields {
 impl Fields {
     /// What the test reads of each pixel, made once: s²/n would otherwise
     /// be divided out again for each of the (2R + 1)² pixels around it.
-    fn new(stats: Vec<Stats>, w: usize, ht: usize) -> Fields {
+    fn new(stats: &[Stats], w: usize, ht: usize) -> Fields {
         let channel = |f: &dyn Fn(&Stats) -> [f64; 3]| -> [Vec<f64>; 3] {
             std::array::from_fn(|c| stats.iter().map(|s| f(s)[c]).collect())
         };
@@ -109,10 +115,10 @@ impl Fields {
         let spread: Vec<f64> = (0..stats.len())
             .map(|px| se2.iter().map(|c| c[px]).sum())
             .collect();
-        let n: Vec<u32> = stats.iter().map(|s| s.n).collect();
+        let n: Vec<u32> = stats.iter().map(|s| s.x.n).collect();
         let limit = spread_limits(&n, &spread, w, ht);
         Fields {
-            mean: channel(&|s| s.mean),
+            mean: channel(&|s| s.x.mean),
             y_mean: channel(&|s| s.y_mean),
             n,
             se2,
@@ -257,10 +263,14 @@ impl Kernel {
 
 /// The denoised image of the valid samples `keep(i)` picks (record i):
 /// the accepted ones.
-pub fn denoise(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool) -> Image {
+pub fn denoise(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool + Sync) -> Image {
+    denoise_stats(&stats_of(records, h, keep), h)
+}
+
+/// The denoised image of the pixels' statistics ([`stats_of`]).
+pub(crate) fn denoise_stats(stats: &[Stats], h: &Header) -> Image {
     let (w, ht) = (h.width as usize, h.height as usize);
-    let stats = stats_of(records, h, keep);
-    let kernel = Kernel::new(stats.iter().map(|s| s.n).max().unwrap_or(0));
+    let kernel = Kernel::new(stats.iter().map(|s| s.x.n).max().unwrap_or(0));
     window(&Fields::new(stats, w, ht), &kernel, h)
 }
 
@@ -282,15 +292,14 @@ fn window(fields: &Fields, kernel: &Kernel, h: &Header) -> Image {
 }
 
 /// Every pixel's statistics of the valid samples `keep(i)` picks, in
-/// file order.
-fn stats_of(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool) -> Vec<Stats> {
-    let mut stats = vec![Stats::default(); h.pixels() * h.frames as usize];
-    for (i, r) in records.iter().enumerate() {
-        if r.validity(h) == Validity::Valid && keep(i) {
-            stats[r.pixel_index(h)].add([r.r as f64, r.g as f64, r.b as f64]);
-        }
-    }
-    stats
+/// file order, on every thread of the pool.
+pub(crate) fn stats_of(
+    records: &[Record],
+    h: &Header,
+    keep: impl Fn(usize) -> bool + Sync,
+) -> Vec<Stats> {
+    let bands = crate::par::current_num_threads();
+    per_pixel::fold(records, h, bands, keep, Stats::add)
 }
 
 /// Pixels per run of a row that the window takes at once: the run's
@@ -781,8 +790,8 @@ mod tests {
             }
             let img = denoise(&recs, &h, |i| i % 31 != 5);
             let stats = stats_of(&recs, &h, |i| i % 31 != 5);
-            let k = Kernel::new(stats.iter().map(|s| s.n).max().unwrap_or(0));
-            let want = denoise_per_pixel(&Fields::new(stats, w, ht), &k, w, ht);
+            let k = Kernel::new(stats.iter().map(|s| s.x.n).max().unwrap_or(0));
+            let want = denoise_per_pixel(&Fields::new(&stats, w, ht), &k, w, ht);
             for (px, (got, want)) in img.data.iter().zip(&want).enumerate() {
                 let bits = |v: &[f64; 3]| v.map(f64::to_bits);
                 assert_eq!(bits(got), bits(want), "{w} × {ht} × {frames}, pixel {px}");
