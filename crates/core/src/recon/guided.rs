@@ -31,6 +31,7 @@
 
 use super::Image;
 use super::confidence::Interval;
+use crate::par::prelude::*;
 
 /// The shipped z of the accepted samples' interval.
 pub const Z: f64 = 2.5;
@@ -46,18 +47,15 @@ pub const SATURATED_Z: f64 = std::f64::consts::SQRT_2;
 /// Pixels with no valid sample stay 0.
 pub fn guide(denoised: &Image, accepted: &Interval, all: &Interval, white: f64) -> Image {
     let mut out = all.bound(denoised);
-    for (px, v) in out.data.iter_mut().enumerate() {
-        if accepted.count[px] == 0 {
-            continue;
-        }
-        let (m, h) = (accepted.centre.data[px], accepted.half_width.data[px]);
-        for c in 0..3 {
-            if v[c] < m[c] - h[c] {
-                v[c] = m[c];
+    out.data.par_iter_mut().enumerate().for_each(|(px, v)| {
+        if accepted.count[px] > 0 {
+            let (m, h) = (accepted.centre.data[px], accepted.half_width.data[px]);
+            for c in 0..3 {
+                if v[c] < m[c] - h[c] {
+                    v[c] = m[c];
+                }
             }
         }
-    }
-    for (px, v) in out.data.iter_mut().enumerate() {
         let (x, se) = (all.centre.data[px], all.own_se.data[px]);
         let over = |a: &[f64; 3]| a.iter().all(|&c| c >= white);
         if all.count[px] >= 2 && over(v) && over(&x) {
@@ -65,7 +63,7 @@ pub fn guide(denoised: &Image, accepted: &Interval, all: &Interval, white: f64) 
                 v[c].clamp(x[c] - SATURATED_Z * se[c], x[c] + SATURATED_Z * se[c])
             });
         }
-    }
+    });
     out
 }
 

@@ -108,14 +108,15 @@ impl Fields {
     /// What the test reads of each pixel, made once: s²/n would otherwise
     /// be divided out again for each of the (2R + 1)² pixels around it.
     fn new(stats: &[Stats], w: usize, ht: usize) -> Fields {
-        let channel = |f: &dyn Fn(&Stats) -> [f64; 3]| -> [Vec<f64>; 3] {
-            std::array::from_fn(|c| stats.iter().map(|s| f(s)[c]).collect())
+        let channel = |f: &(dyn Fn(&Stats) -> [f64; 3] + Sync)| -> [Vec<f64>; 3] {
+            std::array::from_fn(|c| stats.par_iter().map(|s| f(s)[c]).collect())
         };
         let se2 = channel(&|s| s.se2());
         let spread: Vec<f64> = (0..stats.len())
+            .into_par_iter()
             .map(|px| se2.iter().map(|c| c[px]).sum())
             .collect();
-        let n: Vec<u32> = stats.iter().map(|s| s.x.n).collect();
+        let n: Vec<u32> = stats.par_iter().map(|s| s.x.n).collect();
         let limit = spread_limits(&n, &spread, w, ht);
         Fields {
             mean: channel(&|s| s.x.mean),
