@@ -173,7 +173,7 @@ fn every_output_is_bit_identical_for_1_2_and_8_threads() {
     assert!(outputs[0] == outputs[1] && outputs[1] == outputs[2]);
 }
 
-/// At 64 spp the report's σ map is the mean over one sample in 8 of each
+/// At 64 spp the report's σ map is the mean over one sample in 32 of each
 /// pixel's (exact σ, the same samples for any thread count) and no
 /// sigma.exr is written.
 #[test]
@@ -205,14 +205,14 @@ fn the_reports_sigma_map_estimate_is_the_same_for_any_thread_count() {
                 "sigma.exr is exact or absent"
             );
             let r = report(&out);
-            assert_eq!(r["sigma_map_one_in"], 8);
+            assert_eq!(r["sigma_map_one_in"], 32);
             assert_eq!(r["sigma_map_each_pixel"], true);
             std::fs::read(out.join("sigma.png")).unwrap()
         })
         .collect();
     assert_eq!(maps[0], maps[1]);
     let html = std::fs::read_to_string(dir.path().join("out1/report.html")).unwrap();
-    assert!(html.contains("Estimated from one sample in 8 of each pixel's"));
+    assert!(html.contains("Estimated from one sample in 32 of each pixel's"));
 }
 
 #[test]

@@ -5,8 +5,13 @@
 use super::sigma::Goal;
 use crate::dump::{Header, Order};
 
-/// About how many exact σ the report's map asks for, whatever the film's
-/// size: each is a search that goes on past its decision, and at 8 a pixel
+/// The report's map asks for the exact σ of about one sample in this many:
+/// each is a search that goes on past its decision, and at one in 8 they
+/// added 60 % to the replay's streaming on 1 M-sample dumps
+/// (docs/BENCHMARKS.md, "The σ map's share").
+pub const MAP_SHARE: u32 = 32;
+
+/// And for about this many in all, whatever the film's size: at 8 a pixel
 /// a 1080p film's took a third of the replay's time (docs/BENCHMARKS.md,
 /// "A production frame").
 pub const MAP_SEARCHES: u64 = 1 << 21;
@@ -33,12 +38,13 @@ impl ExactSigma {
     /// The HTML report's σ map (docs/filter.md §2): p exact σ in each
     /// pixel where the dump's order tells which samples those are, else
     /// about max(2p, 8) (so that, picked by a hash, none misses a pixel);
-    /// every σ when the dump has no more than that. p is 8 up to
-    /// [`MAP_SEARCHES`] / 8 pixels (all frames), then fewer so that the
-    /// map's searches stay near [`MAP_SEARCHES`], and at least 1.
+    /// every σ when the dump has no more than that. p is spp /
+    /// [`MAP_SHARE`], and at most [`MAP_SEARCHES`] / pixels (all frames),
+    /// within 1 … 8.
     pub fn for_map(h: &Header) -> ExactSigma {
         let pixels = (h.pixels() as u64 * h.frames as u64).max(1);
-        let p = (MAP_SEARCHES / pixels).clamp(1, 8) as u32;
+        let p = (h.spp as u64 / MAP_SHARE as u64).min(MAP_SEARCHES / pixels);
+        let p = p.clamp(1, 8) as u32;
         match Strata::new(h, h.spp / p) {
             Some(s) => ExactSigma::Strata(s),
             None if h.spp / (2 * p).max(8) >= 2 => ExactSigma::OneIn(h.spp / (2 * p).max(8)),
@@ -350,54 +356,63 @@ mod tests {
         }
     }
 
-    /// 8 exact σ a pixel up to 512² pixels (all frames), then fewer, so
-    /// that the map's searches stay near [`MAP_SEARCHES`]: 2 a pixel at
-    /// 1024², 1 at 1080p and beyond; without a declared order, 8 a pixel
-    /// by the hash at any size.
+    /// One exact σ in 32 samples: 2 a pixel at 64 spp, 8 at 256 spp
+    /// and beyond, at least 1; fewer on a large film, so that the map's
+    /// searches stay near [`MAP_SEARCHES`] (1 a pixel at 1080p × 64 spp,
+    /// 2 at 1080p × 256 spp); without a declared order, about 8 a pixel
+    /// by the hash (so that none misses a pixel).
     #[test]
-    fn the_maps_share_shrinks_with_the_film() {
-        let share = |w: u32, h: u32, frames: u32, order: Order| {
-            let mut hd = Header::still(w, h, 64, order);
+    fn the_maps_share_follows_the_samples_and_the_film() {
+        let share = |w: u32, h: u32, frames: u32, spp: u32, order: Order| {
+            let mut hd = Header::still(w, h, spp, order);
             hd.frames = frames;
-            hd.sample_count = w as u64 * h as u64 * frames as u64 * 64;
+            hd.sample_count = w as u64 * h as u64 * frames as u64 * spp as u64;
             ExactSigma::for_map(&hd).share()
         };
         let pass = Order::PassMajor;
-        assert_eq!(share(128, 128, 1, pass), Some(8));
-        assert_eq!(share(512, 512, 1, pass), Some(8));
-        assert_eq!(share(1024, 1024, 1, pass), Some(32));
-        assert_eq!(share(1920, 1080, 1, pass), Some(64));
-        assert_eq!(share(3840, 2160, 1, pass), Some(64));
-        assert_eq!(share(512, 512, 8, Order::PixelMajor), Some(64));
-        assert_eq!(share(1920, 1080, 1, Order::Unspecified), Some(8));
-        for (w, h) in [(128, 128), (1024, 1024), (1920, 1080)] {
-            let picks = (w * h) as u64 * 64 / share(w, h, 1, pass).unwrap() as u64;
+        assert_eq!(share(128, 128, 1, 64, pass), Some(32));
+        assert_eq!(share(128, 128, 1, 256, pass), Some(32));
+        assert_eq!(share(128, 128, 1, 1024, pass), Some(128));
+        assert_eq!(share(128, 128, 1, 16, pass), Some(16));
+        assert_eq!(share(128, 128, 1, 8, Order::PixelMajor), Some(8));
+        assert_eq!(share(1920, 1080, 1, 64, pass), Some(64));
+        assert_eq!(share(1920, 1080, 1, 256, pass), Some(256));
+        assert_eq!(share(1024, 1024, 1, 256, pass), Some(128));
+        assert_eq!(share(512, 512, 8, 64, Order::PixelMajor), Some(64));
+        assert_eq!(share(1920, 1080, 1, 64, Order::Unspecified), Some(8));
+        for (w, h, spp) in [(128, 128, 64), (1024, 1024, 256), (1920, 1080, 64)] {
+            let n = share(w, h, 1, spp, pass).unwrap() as u64;
+            let picks = (w * h) as u64 * spp as u64 / n;
             assert!(
                 picks <= MAP_SEARCHES.max((w * h) as u64),
                 "{w} × {h}: {picks}"
             );
+            assert!(n >= MAP_SHARE as u64, "{w} × {h}: one in {n}");
         }
     }
 
     /// Without a declared order, or with samples other than the film's,
-    /// the report's map falls back to about one in ⌊spp / 16⌋ by a hash.
+    /// the report's map falls back to about one in ⌊spp / max(2p, 8)⌋ by
+    /// a hash, and to every sample where that is below 2.
     #[test]
     fn the_maps_share_needs_a_declared_complete_order() {
         let mut h = Header::still(8, 8, 64, Order::PassMajor);
         h.sample_count = 8 * 8 * 64;
-        assert!(matches!(ExactSigma::for_map(&h), ExactSigma::Strata(s) if s.n == 8));
+        assert!(matches!(ExactSigma::for_map(&h), ExactSigma::Strata(s) if s.n == 32));
         h.sample_count -= 1;
-        assert_eq!(ExactSigma::for_map(&h), ExactSigma::OneIn(4));
+        assert_eq!(ExactSigma::for_map(&h), ExactSigma::OneIn(8));
         h.order = Order::Unspecified;
         h.sample_count += 1;
-        assert_eq!(ExactSigma::for_map(&h), ExactSigma::OneIn(4));
+        assert_eq!(ExactSigma::for_map(&h), ExactSigma::OneIn(8));
         h.spp = 16;
+        assert_eq!(ExactSigma::for_map(&h), ExactSigma::OneIn(2));
+        h.spp = 15;
         assert_eq!(ExactSigma::for_map(&h), ExactSigma::All);
         h.order = Order::PixelMajor;
-        h.sample_count = 8 * 8 * 16;
-        assert_eq!(ExactSigma::for_map(&h).share(), Some(2));
-        h.spp = 15;
         h.sample_count = 8 * 8 * 15;
+        assert_eq!(ExactSigma::for_map(&h).share(), Some(15));
+        h.spp = 1;
+        h.sample_count = 8 * 8;
         assert_eq!(ExactSigma::for_map(&h), ExactSigma::All);
         // spp × film past u64, an empty dump: no strata, and no panic.
         let mut big = Header::still(8192, 8192, u32::MAX, Order::PassMajor);

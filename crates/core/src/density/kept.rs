@@ -1,7 +1,7 @@
 //! The σ a replay keeps ([`super::ExactSigma`]): every record's, as one
 //! array, or only those of the records asked for — one slot each where
 //! the dump's order tells which they are, else (record, σ) pairs — so
-//! that the report's σ map (8 samples of each pixel) costs memory in
+//! that the report's σ map (a share of each pixel's samples) costs memory in
 //! proportion to its share of the dump rather than to the whole dump.
 
 use super::{ExactSigma, Strata};

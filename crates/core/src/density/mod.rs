@@ -26,7 +26,7 @@ mod seeds;
 pub mod sigma;
 mod sigma_map;
 
-pub use exact::{ExactSigma, MAP_SEARCHES, Strata};
+pub use exact::{ExactSigma, MAP_SEARCHES, MAP_SHARE, Strata};
 pub use index::IndexKind;
 pub use kept::Sigmas;
 pub use sigma_map::sigma_map;

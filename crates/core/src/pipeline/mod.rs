@@ -324,7 +324,8 @@ pub fn run(
     options.progress.finish();
     release_freed_memory();
     // The exact σ are read once, by the σ map, and dropped as soon as it
-    // is made (at 8 a pixel they weigh more than five images).
+    // is made (at 8 a pixel, the most the report takes, they weigh more
+    // than five images).
     let sigmas = result.sigma.take();
     let t = Instant::now();
     let replay_seconds = result.streaming_seconds + result.final_seconds;
