@@ -378,10 +378,15 @@ impl<'s, 'a> Estimators<'s, 'a> {
         let (records, h) = (self.shared.records, self.shared.header);
         let (stats, s) =
             timed(|| statmc::stats_of(records, h, |i| Decision::accepted(decisions[i])));
-        let ((interval, ti), (img, tw)) = crate::par::join(
+        let ((interval, ti), (window, tw)) = crate::par::join(
             || timed(|| confidence::from_moments(&stats, h, self.config.guide_z)),
-            || timed(|| statmc::denoise_stats(&stats, h)),
+            || timed(|| statmc::Window::new(&stats, h)),
         );
+        // The statistics are read: gone before the window's longest part.
+        drop(stats);
+        let (img, t) = timed(|| window.denoise(h));
+        drop(window);
+        let tw = tw + t;
         let _ = self.accepted_interval.set((interval, s + ti));
         let seconds = self.core.replay_seconds + s + tw;
         let _ = self.statmc.set((Arc::new(img), seconds));

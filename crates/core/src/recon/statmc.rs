@@ -265,14 +265,29 @@ impl Kernel {
 /// The denoised image of the valid samples `keep(i)` picks (record i):
 /// the accepted ones.
 pub fn denoise(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool + Sync) -> Image {
-    denoise_stats(&stats_of(records, h, keep), h)
+    Window::new(&stats_of(records, h, keep), h).denoise(h)
 }
 
-/// The denoised image of the pixels' statistics ([`stats_of`]).
-pub(crate) fn denoise_stats(stats: &[Stats], h: &Header) -> Image {
-    let (w, ht) = (h.width as usize, h.height as usize);
-    let kernel = Kernel::new(stats.iter().map(|s| s.x.n).max().unwrap_or(0));
-    window(&Fields::new(stats, w, ht), &kernel, h)
+/// What the window reads, made from the pixels' statistics ([`stats_of`]),
+/// which it no longer needs.
+pub(crate) struct Window {
+    fields: Fields,
+    kernel: Kernel,
+}
+
+impl Window {
+    pub(crate) fn new(stats: &[Stats], h: &Header) -> Window {
+        let (w, ht) = (h.width as usize, h.height as usize);
+        Window {
+            kernel: Kernel::new(stats.iter().map(|s| s.x.n).max().unwrap_or(0)),
+            fields: Fields::new(stats, w, ht),
+        }
+    }
+
+    /// The denoised image.
+    pub(crate) fn denoise(&self, h: &Header) -> Image {
+        window(&self.fields, &self.kernel, h)
+    }
 }
 
 /// Every pixel's mean of its window's compatible pixels.
