@@ -81,12 +81,19 @@ struct Api {
     ),
     unset_image: unsafe extern "C" fn(Handle, *const c_char),
     set_bool: unsafe extern "C" fn(Handle, *const c_char, bool),
+    set_int: unsafe extern "C" fn(Handle, *const c_char, c_int),
     commit_filter: unsafe extern "C" fn(Handle),
     execute_filter: unsafe extern "C" fn(Handle),
     release_filter: unsafe extern "C" fn(Handle),
 }
 
 const DEVICE_TYPE_CPU: c_int = 1;
+
+/// OIDN's scratch memory, in MB: beyond it OIDN denoises the image in
+/// overlapping tiles. Unbounded, a 1080p frame's took 0.84 GB (the default
+/// run's peak anonymous memory 2.03 GB against 1.19 GB at this bound, the
+/// image the same bits, docs/BENCHMARKS.md, "A production frame").
+const MAX_MEMORY_MB: c_int = 256;
 const FORMAT_FLOAT3: c_int = 3;
 
 /// An OIDN library found and loaded; it stays loaded for the process.
@@ -227,6 +234,7 @@ fn load(file: &Path, shown: PathBuf) -> Result<Library, String> {
             shared_image: fn_ptr(symbol(c"oidnSetSharedFilterImage")?),
             unset_image: fn_ptr(symbol(c"oidnUnsetFilterImage")?),
             set_bool: fn_ptr(symbol(c"oidnSetFilterBool")?),
+            set_int: fn_ptr(symbol(c"oidnSetFilterInt")?),
             commit_filter: fn_ptr(symbol(c"oidnCommitFilter")?),
             execute_filter: fn_ptr(symbol(c"oidnExecuteFilter")?),
             release_filter: fn_ptr(symbol(c"oidnReleaseFilter")?),
@@ -378,6 +386,8 @@ fn denoise_with(
         return Err(OidnError::NoFilter);
     }
     unsafe { (api.set_bool)(s.filter, c"hdr".as_ptr(), true) };
+    // SAFETY: a live filter and a NUL-terminated parameter name.
+    unsafe { (api.set_int)(s.filter, c"maxMemoryMB".as_ptr(), MAX_MEMORY_MB) };
     let (w, h) = (img.width, img.height);
     let (mut non_finite, mut negative) = (0, 0);
     let mut out = Image::new(w, h, img.frames);
