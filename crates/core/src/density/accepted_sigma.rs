@@ -20,8 +20,8 @@ use crate::joint::JointSpace;
 
 /// Searches per round: they are sorted by cell, so that the searches of
 /// one cell share a gathered block. Half a search a pixel of the film
-/// (`pixels`) gives each 3 × 3-pixel cell about 4 a round at the report's
-/// 8 a pixel; at 2^18 a round a 1080p film's cells got about one, and its
+/// (`pixels`) gives each 3 × 3-pixel cell about 4 a round at 8 σ a pixel
+/// (the most the report asks for); at 2^18 a round a 1080p film's cells got about one, and its
 /// searches took 1.8× as long (docs/BENCHMARKS.md, "A production frame").
 /// At least 2^18, and at most 2^21, which bounds their memory (about 100
 /// bytes each while the round is gathered).

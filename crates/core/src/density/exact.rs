@@ -11,9 +11,10 @@ use crate::dump::{Header, Order};
 /// (docs/BENCHMARKS.md, "The σ map's share").
 pub const MAP_SHARE: u32 = 32;
 
-/// And for about this many in all, whatever the film's size: at 8 a pixel
-/// a 1080p film's took a third of the replay's time (docs/BENCHMARKS.md,
-/// "A production frame").
+/// And for at most about this many in all on films up to this many
+/// pixels (all frames), at least one a pixel beyond: at 8 a pixel a 1080p
+/// film's took a third of the replay's time (docs/BENCHMARKS.md, "A
+/// production frame").
 pub const MAP_SEARCHES: u64 = 1 << 21;
 
 /// Which samples' exact σ a replay computes. None of these changes a
@@ -45,9 +46,10 @@ impl ExactSigma {
         let pixels = (h.pixels() as u64 * h.frames as u64).max(1);
         let p = (h.spp as u64 / MAP_SHARE as u64).min(MAP_SEARCHES / pixels);
         let p = p.clamp(1, 8) as u32;
+        let hashed = h.spp / (2 * p).max(8);
         match Strata::new(h, h.spp / p) {
             Some(s) => ExactSigma::Strata(s),
-            None if h.spp / (2 * p).max(8) >= 2 => ExactSigma::OneIn(h.spp / (2 * p).max(8)),
+            None if hashed >= 2 => ExactSigma::OneIn(hashed),
             None => ExactSigma::All,
         }
     }
@@ -199,7 +201,10 @@ impl Strata {
                 let residue = (n - s % n) % n;
                 let first = pass * self.pixels;
                 let (lo, hi) = (recs.start.max(first), recs.end.min(first + self.pixels));
-                if (hi - lo) * 4 >= self.pixels && self.pixels <= u32::MAX as u64 {
+                // A table costs about two hashes a pixel: made for a walk
+                // over whole passes of a frame, not for a part of one.
+                let whole = recs.end - recs.start >= 2 * self.pixels && hi - lo == self.pixels;
+                if whole && n <= self.pixels && self.pixels <= u32::MAX as u64 {
                     if residues.as_ref().is_none_or(|r| r.0 != frame) {
                         residues = Some((frame, Residues::new(self, frame)));
                     }
@@ -358,8 +363,8 @@ mod tests {
 
     /// One exact σ in 32 samples: 2 a pixel at 64 spp, 8 at 256 spp
     /// and beyond, at least 1; fewer on a large film, so that the map's
-    /// searches stay near [`MAP_SEARCHES`] (1 a pixel at 1080p × 64 spp,
-    /// 2 at 1080p × 256 spp); without a declared order, about 8 a pixel
+    /// searches stay near [`MAP_SEARCHES`] (1 a pixel at 1080p, whatever
+    /// its spp); without a declared order, about 8 a pixel
     /// by the hash (so that none misses a pixel).
     #[test]
     fn the_maps_share_follows_the_samples_and_the_film() {

@@ -90,9 +90,11 @@ struct Api {
 const DEVICE_TYPE_CPU: c_int = 1;
 
 /// OIDN's scratch memory, in MB: beyond it OIDN denoises the image in
-/// overlapping tiles. Unbounded, a 1080p frame's took 0.84 GB (the default
-/// run's peak anonymous memory 2.03 GB against 1.19 GB at this bound, the
-/// image the same bits, docs/BENCHMARKS.md, "A production frame").
+/// overlapping tiles. Unbounded, a 1080p frame's took 0.84 GB (the
+/// `--no-html` run's peak anonymous memory 2.03 GB, against 1.19 GB at
+/// this bound, docs/BENCHMARKS.md, "A production frame"). OIDN does not
+/// promise tiles give the untiled bits; on that frame, and on every
+/// 128² dump (which fit untiled), they did.
 const MAX_MEMORY_MB: c_int = 256;
 const FORMAT_FLOAT3: c_int = 3;
 

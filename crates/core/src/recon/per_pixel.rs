@@ -5,33 +5,38 @@ use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use crate::dump::{Header, Order, Record, Validity};
 use crate::par::prelude::*;
 
-/// Bytes of accumulators a job of a pass-major fold keeps in the core's
-/// cache while it reads its pixels' samples pass by pass.
+/// Bytes of accumulators a job keeps in the core's cache while it reads
+/// its pixels' samples ([`in_place`]).
 const TILE_BYTES: usize = 1 << 18;
 
+/// At most this many bands scan the dump where its order is not known:
+/// each reads every record.
+const MAX_BANDS: usize = 8;
+
 /// Per pixel (all frames), `add` folded over its valid samples that
-/// `keep(i)` picks (record i), in file order, by `bands` jobs (1: on
-/// this thread alone). Each pixel's fold is the serial one whatever the
-/// number of jobs.
+/// `keep(i)` picks (record i), in file order, by up to `jobs` jobs at a
+/// time (1: on this thread alone). Each pixel's fold is the serial one
+/// whatever the number of jobs.
 ///
-/// A pass-major dump is read tile by tile of pixels, each tile's samples
-/// pass by pass, so that its accumulators stay in cache ([`by_tiles`]);
-/// any other dump in bands of rows, each band's job scanning every record
-/// for its own.
+/// A pixel- or pass-major dump is read in place, tile by tile of pixels
+/// ([`in_place`]); any other in bands of rows, each band's job scanning
+/// every record for its own.
 pub fn fold<A: Default + Clone + Send>(
     records: &[Record],
     h: &Header,
-    bands: usize,
+    jobs: usize,
     keep: impl Fn(usize) -> bool + Sync,
     add: impl Fn(&mut A, [f64; 3]) + Sync,
 ) -> Vec<A> {
-    if let Some(acc) = by_tiles(records, h, bands > 1, &keep, &add) {
+    let tile = (TILE_BYTES / size_of::<A>().max(1)).max(1);
+    if let Some(acc) = in_place(records, h, jobs > 1, tile, &keep, &add) {
         return acc;
     }
     let width = (h.width as usize).max(1);
     let pixels = h.pixels() * h.frames as usize;
     let mut acc = vec![A::default(); pixels];
-    let band = (pixels / width).div_ceil(bands.max(1)).max(1) * width;
+    let bands = jobs.clamp(1, MAX_BANDS);
+    let band = (pixels / width).div_ceil(bands).max(1) * width;
     acc.par_chunks_mut(band).enumerate().for_each(|(b, acc)| {
         let first = b * band;
         for (i, r) in records.iter().enumerate() {
@@ -53,50 +58,69 @@ pub fn fold<A: Default + Clone + Send>(
     acc
 }
 
-/// [`fold`] of a dump that declares pass-major order and holds exactly its
-/// film's samples: record (f·spp + s)·P + p is sample s of pixel p of
-/// frame f (P pixels a frame), so a tile of a frame's pixels finds its
-/// samples as one run of records a pass, in file order. None when the
-/// dump does not declare that order, or when a valid record lies outside
+/// [`fold`] of a dump that declares pixel- or pass-major order and holds
+/// exactly its film's samples, so that a record's place says its pixel
+/// and sample: pixel-major, record p·spp + s is sample s of pixel p
+/// (frames in turn); pass-major, record (f·spp + s)·P + p is
+/// sample s of pixel p of frame f (P pixels a frame). Each job takes
+/// `tile` pixels of one frame and reads their samples in file order: a
+/// pixel's run of records at a time (pixel-major), or the tile's run of
+/// each pass (pass-major), so its accumulators stay in cache. None when
+/// the dump declares neither order, or when a valid record lies outside
 /// the pixel its place says (then the order does not hold, and [`fold`]
 /// scans).
-fn by_tiles<A: Default + Clone + Send>(
+fn in_place<A: Default + Clone + Send>(
     records: &[Record],
     h: &Header,
     parallel: bool,
+    tile: usize,
     keep: &(impl Fn(usize) -> bool + Sync),
     add: &(impl Fn(&mut A, [f64; 3]) + Sync),
 ) -> Option<Vec<A>> {
+    let pass_major = match h.order {
+        Order::PassMajor => true,
+        Order::PixelMajor => false,
+        Order::Unspecified => return None,
+    };
     let (pixels, frames, spp) = (h.pixels(), h.frames as usize, h.spp as usize);
     let complete = (pixels * frames).checked_mul(spp) == Some(records.len());
-    if h.order != Order::PassMajor || !complete || records.is_empty() {
+    if !complete || records.is_empty() {
         return None;
     }
     let misplaced = AtomicBool::new(false);
-    let tile = (TILE_BYTES / size_of::<A>().max(1)).max(1);
     let mut acc = vec![A::default(); pixels * frames];
     let fill = |(first, acc): (usize, &mut [A])| {
-        let (frame, p0) = (first / pixels, first % pixels);
-        let n = acc.len();
-        for s in 0..spp {
-            let base = (frame * spp + s) * pixels + p0;
-            for (j, (a, r)) in acc.iter_mut().zip(&records[base..base + n]).enumerate() {
-                if r.validity(h) != Validity::Valid {
-                    continue;
-                }
-                if r.pixel_index(h) != first + j {
-                    misplaced.store(true, Relaxed);
-                    return;
-                }
-                if keep(base + j) {
-                    add(a, [r.r as f64, r.g as f64, r.b as f64]);
-                }
+        let (frame, p0, n) = (first / pixels, first % pixels, acc.len());
+        // Pixel `first + j`'s sample at record `rec`; false if it is not
+        // that pixel's.
+        let mut visit = |j: usize, rec: usize| {
+            let r = &records[rec];
+            if r.validity(h) != Validity::Valid {
+                return true;
             }
+            if r.pixel_index(h) != first + j {
+                return false;
+            }
+            if keep(rec) {
+                add(&mut acc[j], [r.r as f64, r.g as f64, r.b as f64]);
+            }
+            true
+        };
+        let placed = if pass_major {
+            (0..spp).all(|s| {
+                let base = (frame * spp + s) * pixels + p0;
+                (0..n).all(|j| visit(j, base + j))
+            })
+        } else {
+            (0..n).all(|j| (0..spp).all(|s| visit(j, (first + j) * spp + s)))
+        };
+        if !placed {
+            misplaced.store(true, Relaxed);
         }
     };
     // Tiles within a frame, so that each is one run a pass.
     let tiles = acc
-        .chunks_mut(pixels)
+        .chunks_mut(pixels.max(1))
         .flat_map(|frame| frame.chunks_mut(tile));
     let tiles: Vec<(usize, &mut [A])> = tiles
         .scan(0, |start, t| {
@@ -126,8 +150,10 @@ mod tests {
     fn bands_fold_each_pixel_in_file_order() {
         for (order, misplace) in [
             (Order::PixelMajor, false),
+            (Order::PixelMajor, true),
             (Order::PassMajor, false),
             (Order::PassMajor, true),
+            (Order::Unspecified, false),
         ] {
             check_bands(order, misplace);
         }
@@ -171,6 +197,21 @@ mod tests {
                 a.push(c[0] as usize)
             });
             assert_eq!(got, serial, "{order} misplaced {misplace}: {bands} bands");
+            // Read in place in tiles of any size (a frame has 35 pixels),
+            // where the order is declared and holds.
+            let push = |a: &mut Vec<usize>, c: [f64; 3]| a.push(c[0] as usize);
+            for tile in [1, 3, 8, 35, 1000] {
+                let got = in_place(&named, &h, bands > 1, tile, &keep, &push);
+                let holds = order != Order::Unspecified && !misplace;
+                assert_eq!(
+                    got.is_some(),
+                    holds,
+                    "{order} misplaced {misplace}: tile {tile}"
+                );
+                if let Some(got) = got {
+                    assert_eq!(got, serial, "{order}: {bands} jobs, tile {tile}");
+                }
+            }
         }
     }
 }

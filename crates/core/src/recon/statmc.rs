@@ -265,7 +265,9 @@ impl Kernel {
 /// The denoised image of the valid samples `keep(i)` picks (record i):
 /// the accepted ones.
 pub fn denoise(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool + Sync) -> Image {
-    Window::new(&stats_of(records, h, keep), h).denoise(h)
+    // The statistics go once the window's fields are made.
+    let window = Window::new(&stats_of(records, h, keep), h);
+    window.denoise(h)
 }
 
 /// What the window reads, made from the pixels' statistics ([`stats_of`]),
@@ -295,7 +297,7 @@ fn window(fields: &Fields, kernel: &Kernel, h: &Header) -> Image {
     let (w, ht) = (h.width as usize, h.height as usize);
     let mut img = Image::for_header(h);
     img.data
-        .par_chunks_mut(w)
+        .par_chunks_mut(w.max(1))
         .enumerate()
         .for_each(|(row, out)| {
             let (base, y) = ((row / ht) * w * ht, row % ht);
@@ -373,7 +375,7 @@ fn window_run_portable(
 ) {
     let mut sum = [[0.0f64; RUN]; 3];
     let mut weight = [0.0f64; RUN];
-    let mut wq = [0.0f64; RUN];
+    let mut weights = [0.0f64; RUN];
     let r = RADIUS as isize;
     for ny in y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(ht) {
         let wy = k.spatial[ny.abs_diff(y)];
@@ -388,20 +390,20 @@ fn window_run_portable(
             let p = base + y * w + lo;
             let q = (base + ny * w + lo).wrapping_add_signed(dx);
             let slots = lo - xs.start..hi - xs.start;
-            let wq = &mut wq[slots.clone()];
-            if pair_weights(f, k, ws, p, q, wq) {
-                for (i, wq) in wq.iter_mut().enumerate() {
+            let run = &mut weights[slots.clone()];
+            if pair_weights(f, k, ws, p, q, run) {
+                for (i, wq) in run.iter_mut().enumerate() {
                     let same = f.n[p + i] >= 2 && f.compatible(p + i, q + i, k);
                     *wq = ws * f.n[q + i] as f64 * f64::from(u8::from(same));
                 }
             }
             for (sum, mean) in sum.iter_mut().zip(&f.mean) {
-                let m = &mean[q..q + wq.len()];
-                for ((s, wq), m) in sum[slots.clone()].iter_mut().zip(&*wq).zip(m) {
+                let m = &mean[q..q + run.len()];
+                for ((s, wq), m) in sum[slots.clone()].iter_mut().zip(&*run).zip(m) {
                     *s += wq * m;
                 }
             }
-            for (s, wq) in weight[slots].iter_mut().zip(&*wq) {
+            for (s, wq) in weight[slots].iter_mut().zip(&*run) {
                 *s += wq;
             }
         }
@@ -857,6 +859,42 @@ mod tests {
             ht,
         );
         assert!(got.data.iter().zip(&all).any(|(g, a)| g != a));
+    }
+
+    /// The four-at-a-time loop gives the pair-by-pair loop's weights and
+    /// verdict on runs of any length whose pixels differ lane by lane:
+    /// counts (0, 1, 2 and more), spreads and their limits, zero
+    /// variances, equal and unequal means.
+    #[test]
+    fn the_vector_run_is_the_portable_run() {
+        let mut unit = crate::synth::test_units(11);
+        let px = 256;
+        for trial in 0..300 {
+            let mut pick = |choices: &[f64]| choices[(unit() * choices.len() as f64) as usize];
+            let n: Vec<u32> = (0..px)
+                .map(|_| pick(&[0.0, 1.0, 2.0, 5.0, 8.0, 16.0]) as u32)
+                .collect();
+            let y: Vec<f64> = (0..px).map(|_| pick(&[0.0, 1.0, 1.5, 2.0, 9.0])).collect();
+            let se2: Vec<f64> = (0..px).map(|_| pick(&[0.0, 0.0, 0.01, 0.3, 2.0])).collect();
+            let f = Fields {
+                mean: std::array::from_fn(|c| (0..px).map(|i| (i + c) as f64).collect()),
+                y_mean: std::array::from_fn(|c| y.iter().map(|v| v + c as f64 * 0.1).collect()),
+                se2: std::array::from_fn(|_| se2.clone()),
+                spread: se2.iter().map(|v| 3.0 * v).collect(),
+                limit: (0..px)
+                    .map(|_| pick(&[0.0, 0.5, 5.0, f64::INFINITY]))
+                    .collect(),
+                n,
+            };
+            let k = Kernel::new(16);
+            let len = 1 + trial % 120;
+            let (mut vector, mut portable) = (vec![0.0; len], vec![-1.0; len]);
+            let undecided = pair_weights(&f, &k, 0.7, 3, 130, &mut vector);
+            let undecided_portable = pair_weights_portable(&f, &k, 0.7, 3, 130, &mut portable, 0);
+            assert_eq!(undecided, undecided_portable, "trial {trial}");
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&vector), bits(&portable), "trial {trial}");
+        }
     }
 
     /// An outlier the caller leaves out does not move its pixel.
