@@ -302,8 +302,9 @@ fn window(fields: &Fields, kernel: &Kernel, h: &Header) -> Image {
         .for_each(|(row, out)| {
             let (base, y) = ((row / ht) * w * ht, row % ht);
             for (r, out) in out.chunks_mut(RUN).enumerate() {
-                let x0 = r * RUN;
-                window_run(fields, kernel, (w, ht), (base, y), x0..x0 + out.len(), out);
+                let xs = r * RUN..r * RUN + out.len();
+                let run = Run { w, ht, base, y, xs };
+                window_run(fields, kernel, &run, out);
             }
         });
     img
@@ -325,54 +326,49 @@ pub(crate) fn stats_of(
 /// (2R + 1)² offsets.
 const RUN: usize = 256;
 
-/// The output of pixels `xs` of row y of the frame whose first pixel is
-/// `base`, into `out`: each pixel's mean of its compatible neighbours,
-/// weighted by sample count and the spatial Gaussian. The window is taken
-/// offset by offset in its order (row by row, left to right), each offset
-/// for the whole run, so each pixel's sums add the same terms in the same
-/// order as a loop over its own window; a neighbour left out adds 0,
-/// which changes no sum (a sum that starts at +0 is never −0, and a mean
-/// is finite).
-fn window_run(
-    f: &Fields,
-    k: &Kernel,
-    (w, ht): (usize, usize),
-    (base, y): (usize, usize),
+/// Pixels `xs` of row y of the frame whose first pixel is `base`, on a
+/// w × ht film.
+struct Run {
+    w: usize,
+    ht: usize,
+    base: usize,
+    y: usize,
     xs: std::ops::Range<usize>,
-    out: &mut [[f64; 3]],
-) {
+}
+
+/// The output of the pixels of `run`, into `out`: each pixel's mean of its
+/// compatible neighbours, weighted by sample count and the spatial
+/// Gaussian. The window is taken offset by offset in its order (row by
+/// row, left to right), each offset for the whole run, so each pixel's
+/// sums add the same terms in the same order as a loop over its own
+/// window; a neighbour left out adds 0, which changes no sum (a sum that
+/// starts at +0 is never −0, and a mean is finite).
+fn window_run(f: &Fields, k: &Kernel, run: &Run, out: &mut [[f64; 3]]) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2 (checked just above).
-        return unsafe { window_run_avx2(f, k, (w, ht), (base, y), xs, out) };
+        return unsafe { window_run_avx2(f, k, run, out) };
     }
-    window_run_portable(f, k, (w, ht), (base, y), xs, out)
+    window_run_portable(f, k, run, out)
 }
 
 /// [`window_run`] compiled for AVX2: the same code and the same
 /// arithmetic (no fused multiply-add), in wider vectors.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn window_run_avx2(
-    f: &Fields,
-    k: &Kernel,
-    (w, ht): (usize, usize),
-    (base, y): (usize, usize),
-    xs: std::ops::Range<usize>,
-    out: &mut [[f64; 3]],
-) {
-    window_run_portable(f, k, (w, ht), (base, y), xs, out)
+fn window_run_avx2(f: &Fields, k: &Kernel, run: &Run, out: &mut [[f64; 3]]) {
+    window_run_portable(f, k, run, out)
 }
 
 #[inline(always)]
-fn window_run_portable(
-    f: &Fields,
-    k: &Kernel,
-    (w, ht): (usize, usize),
-    (base, y): (usize, usize),
-    xs: std::ops::Range<usize>,
-    out: &mut [[f64; 3]],
-) {
+fn window_run_portable(f: &Fields, k: &Kernel, run: &Run, out: &mut [[f64; 3]]) {
+    let Run {
+        w,
+        ht,
+        base,
+        y,
+        ref xs,
+    } = *run;
     let mut sum = [[0.0f64; RUN]; 3];
     let mut weight = [0.0f64; RUN];
     let mut weights = [0.0f64; RUN];
