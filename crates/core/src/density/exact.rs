@@ -7,13 +7,13 @@ use crate::dump::{Header, Order};
 
 /// The report's map asks for the exact σ of about one sample in this many:
 /// each is a search that goes on past its decision, and at one in 8 they
-/// added 60 % to the replay's streaming on 1 M-sample dumps
+/// added 60 % to the replay's streaming on a 1 M-sample Cycles dump
 /// (docs/BENCHMARKS.md, "The σ map's share").
 pub const MAP_SHARE: u32 = 32;
 
 /// And for at most about this many in all on films up to this many
 /// pixels (all frames), at least one a pixel beyond: at 8 a pixel a 1080p
-/// film's took a third of the replay's time (docs/BENCHMARKS.md, "A
+/// film's added two fifths to the replay's time (docs/BENCHMARKS.md, "A
 /// production frame").
 pub const MAP_SEARCHES: u64 = 1 << 21;
 
