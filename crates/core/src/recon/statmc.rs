@@ -387,7 +387,7 @@ fn window_run_portable(f: &Fields, k: &Kernel, run: &Run, out: &mut [[f64; 3]]) 
             let q = (base + ny * w + lo).wrapping_add_signed(dx);
             let slots = lo - xs.start..hi - xs.start;
             let run = &mut weights[slots.clone()];
-            if pair_weights(f, k, ws, p, q, run) {
+            if pair_weights(f, k, &Pairs { ws, p, q }, run) {
                 for (i, wq) in run.iter_mut().enumerate() {
                     let same = f.n[p + i] >= 2 && f.compatible(p + i, q + i, k);
                     *wq = ws * f.n[q + i] as f64 * f64::from(u8::from(same));
@@ -423,13 +423,22 @@ fn window_run_portable(f: &Fields, k: &Kernel, run: &Run, out: &mut [[f64; 3]]) 
 /// s = 0 (then the written form is d ≤ 0); true when some pair is
 /// neither, which the caller then decides with [`Fields::compatible`].
 #[inline(always)]
-fn pair_weights(f: &Fields, k: &Kernel, ws: f64, p: usize, q: usize, wq: &mut [f64]) -> bool {
+fn pair_weights(f: &Fields, k: &Kernel, pairs: &Pairs, wq: &mut [f64]) -> bool {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2 (checked just above).
-        return unsafe { avx2::pair_weights(f, k, ws, p, q, wq) };
+        return unsafe { avx2::pair_weights(f, k, pairs, wq) };
     }
-    pair_weights_portable(f, k, ws, p, q, wq, 0)
+    pair_weights_portable(f, k, pairs, wq, 0)
+}
+
+/// The pairs (p + i, q + i) of one window offset along a run, whose
+/// spatial weight is `ws`.
+#[derive(Clone, Copy)]
+struct Pairs {
+    ws: f64,
+    p: usize,
+    q: usize,
 }
 
 /// [`pair_weights`] from pair `from` on, one pair at a time.
@@ -437,12 +446,11 @@ fn pair_weights(f: &Fields, k: &Kernel, ws: f64, p: usize, q: usize, wq: &mut [f
 fn pair_weights_portable(
     f: &Fields,
     k: &Kernel,
-    ws: f64,
-    p: usize,
-    q: usize,
+    pairs: &Pairs,
     wq: &mut [f64],
     from: usize,
 ) -> bool {
+    let Pairs { ws, p, q } = *pairs;
     let last = k.t2.len() - 1;
     let mut undecided = false;
     for (i, wq) in wq.iter_mut().enumerate().skip(from) {
@@ -474,23 +482,16 @@ fn pair_weights_portable(
 /// the same order, so the same bits.
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::{Fields, Kernel, MARGIN, TINY};
+    use super::{Fields, Kernel, MARGIN, Pairs, TINY};
     use std::arch::x86_64::*;
 
     #[target_feature(enable = "avx2")]
-    pub(super) fn pair_weights(
-        f: &Fields,
-        k: &Kernel,
-        ws: f64,
-        p: usize,
-        q: usize,
-        wq: &mut [f64],
-    ) -> bool {
-        let len = wq.len();
+    pub(super) fn pair_weights(f: &Fields, k: &Kernel, pairs: &Pairs, wq: &mut [f64]) -> bool {
+        let (len, Pairs { ws, p, q }) = (wq.len(), *pairs);
         // Sample counts index t² as 32-bit integers.
         let last = k.t2.len() - 1;
         if last > i32::MAX as usize {
-            return super::pair_weights_portable(f, k, ws, p, q, wq, 0);
+            return super::pair_weights_portable(f, k, pairs, wq, 0);
         }
         let (fields, end) = (Slices::new(f, p, q, len), len / 4 * 4);
         let mut undecided = _mm256_setzero_pd();
@@ -500,7 +501,7 @@ mod avx2 {
             wq[i..i + 4].copy_from_slice(&w);
             undecided = _mm256_or_pd(undecided, u);
         }
-        let tail = super::pair_weights_portable(f, k, ws, p, q, wq, end);
+        let tail = super::pair_weights_portable(f, k, pairs, wq, end);
         _mm256_movemask_pd(undecided) != 0 || tail
     }
 
@@ -723,11 +724,16 @@ mod tests {
                 };
                 let weight = if want { 8.0 } else { 0.0 };
                 let mut wq = [0.0; 4];
-                if !pair_weights(&f, &k, 1.0, 0, 4, &mut wq) {
+                let pairs = Pairs {
+                    ws: 1.0,
+                    p: 0,
+                    q: 4,
+                };
+                if !pair_weights(&f, &k, &pairs, &mut wq) {
                     assert_eq!(wq, [weight; 4], "{d} {sp} {sq} {crit}");
                     by_run += 1;
                 }
-                if !pair_weights_portable(&f, &k, 1.0, 0, 4, &mut wq[..1], 0) {
+                if !pair_weights_portable(&f, &k, &pairs, &mut wq[..1], 0) {
                     assert_eq!(wq[0], weight, "{d} {sp} {sq} {crit}");
                 }
                 assert_eq!(f.compatible(0, 4, &k), want);
@@ -885,8 +891,13 @@ mod tests {
             let k = Kernel::new(16);
             let len = 1 + trial % 120;
             let (mut vector, mut portable) = (vec![0.0; len], vec![-1.0; len]);
-            let undecided = pair_weights(&f, &k, 0.7, 3, 130, &mut vector);
-            let undecided_portable = pair_weights_portable(&f, &k, 0.7, 3, 130, &mut portable, 0);
+            let pairs = Pairs {
+                ws: 0.7,
+                p: 3,
+                q: 130,
+            };
+            let undecided = pair_weights(&f, &k, &pairs, &mut vector);
+            let undecided_portable = pair_weights_portable(&f, &k, &pairs, &mut portable, 0);
             assert_eq!(undecided, undecided_portable, "trial {trial}");
             let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&vector), bits(&portable), "trial {trial}");
