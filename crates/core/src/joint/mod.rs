@@ -29,6 +29,19 @@ impl ColorSpace {
             ColorSpace::Logluv => hdr::rgb_to_logluv(rgb, white),
         }
     }
+
+    /// The first colour coordinate (L*, or the log lightness of F2a and
+    /// F2b) of a colour whose luminance is `y` ([`lab::luminance`]): the
+    /// same bits as `coords`' first, which depends on nothing else. Lets a
+    /// pass that only sorts samples by lightness skip the chroma.
+    #[inline]
+    pub fn lightness(self, y: f64, white: f64) -> f64 {
+        let u = y / (white * lab::WHITE_D65[1]);
+        match self {
+            ColorSpace::Cielab => 116.0 * lab::f(u) - 16.0,
+            ColorSpace::Loglab | ColorSpace::Logluv => 116.0 * hdr::f_log(u) - 16.0,
+        }
+    }
 }
 
 crate::names::named!(ColorSpace, "colour space", {
@@ -120,6 +133,13 @@ impl JointSpace {
         p
     }
 
+    /// [`JointSpace::point`]'s first colour coordinate (index `D - 3`) of a
+    /// record whose luminance ([`lab::luminance`]) is `y`, the same bits.
+    #[inline]
+    pub fn lightness_coord(&self, y: f64) -> f32 {
+        coord(self.color.lightness(y, self.white) / self.sigma_color)
+    }
+
     /// [`JointSpace::point`]'s image (and time) coordinates, the colour
     /// ones left 0: what an index over the image axes needs, without the
     /// colour transform.
@@ -146,4 +166,54 @@ pub fn dist2<const D: usize>(p: &[f32; D], q: &[f32; D]) -> f64 {
         s += d * d;
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The lightness from luminance alone is the point's coordinate, bit
+    /// for bit, in every colour space: dark, negative, around the white
+    /// and far above it, and at the f32 clamp.
+    #[test]
+    fn the_lightness_of_the_luminance_is_the_points_coordinate() {
+        let mut state = 11u64;
+        let mut uniform = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut checked = 0;
+        for color in [ColorSpace::Cielab, ColorSpace::Loglab, ColorSpace::Logluv] {
+            for white in [1.0, 0.37, 250.0] {
+                let space = JointSpace {
+                    color,
+                    white,
+                    ..JointSpace::DEFAULT
+                };
+                for i in 0..3000 {
+                    let scale = [1e-6, 0.01, 1.0, 30.0, 1e5, 3e38][i % 6];
+                    let mut c = || ((uniform() * 2.2 - 0.2) * scale) as f32;
+                    let r = Record {
+                        x: 0.5,
+                        y: 0.5,
+                        t: 0.0,
+                        r: c(),
+                        g: c(),
+                        b: c(),
+                    };
+                    let y = lab::luminance([r.r as f64, r.g as f64, r.b as f64]);
+                    let p = space.point::<5>(&r);
+                    assert_eq!(
+                        space.lightness_coord(y).to_bits(),
+                        p[2].to_bits(),
+                        "{color:?} white {white} {r:?}"
+                    );
+                    checked += 1;
+                }
+            }
+        }
+        assert_eq!(checked, 27_000);
+    }
 }

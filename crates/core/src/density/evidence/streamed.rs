@@ -12,6 +12,7 @@ use crate::density::index::grid::Grid;
 use crate::density::sigma::{Goal, KBest};
 use crate::density::{ExactSigma, FilterResult};
 use crate::dump::{Header, Order, Record, Validity};
+use crate::joint::lab::luminance;
 use crate::joint::{JointSpace, dist2};
 use crate::par::prelude::*;
 
@@ -32,6 +33,14 @@ const MATES_PER_SIDE: usize = 32;
 /// Relative slack of a query's reach in [`QueryCells`]: rounding moves a
 /// coordinate by about 10⁻¹⁶ of its size.
 const REACH_SLACK: f64 = 1e-9;
+
+/// A pixel that a cell border crosses, in [`QueryCells::pixel_cells`].
+const STRADDLES: u32 = u32::MAX;
+
+/// Relative slack of a luminance where the lightness cell changes in
+/// [`QueryCells::may_list`]: the colour transform rounds within about
+/// 10⁻¹⁵ of its value.
+const LUMINANCE_SLACK: f64 = 1e-9;
 
 pub(super) fn against_all<const D: usize>(
     records: &[Record],
@@ -89,7 +98,7 @@ pub(super) fn against_all<const D: usize>(
     // Every valid sample offered to the queries whose reach it may be in,
     // found through a grid over the image (and time) axes where each query
     // is listed in every cell its reach touches.
-    let cells = QueryCells::new(extent, D - 3, &queries);
+    let cells = QueryCells::new(header, space, &queries);
     let jobs = JOBS_PER_THREAD * crate::par::current_num_threads();
     let per_job = records.len().div_ceil(jobs).max(1);
     let partial: Vec<Vec<KBest>> = records
@@ -98,7 +107,7 @@ pub(super) fn against_all<const D: usize>(
         .map(|(c, chunk)| {
             let mut kbs = vec![KBest::new(k); queries.len()];
             for (j, r) in chunk.iter().enumerate() {
-                if r.validity(header) != Validity::Valid {
+                if r.validity(header) != Validity::Valid || !cells.may_list::<D>(space, r) {
                     continue;
                 }
                 let rec = c * per_job + j;
@@ -192,7 +201,9 @@ struct Query<const D: usize> {
 
 /// The queries listed by the cells of a grid that they reach: over the
 /// image axes, time for animations, and the first colour axis (lightness),
-/// which separates a firefly from the samples around it.
+/// which separates a firefly from the samples around it. Most samples'
+/// cells list no query; [`QueryCells::may_list`] tells from a sample's
+/// position and luminance, without its colour transform.
 struct QueryCells {
     /// The coordinates gridded: x, y (t), the first colour coordinate.
     coords: Vec<usize>,
@@ -200,10 +211,25 @@ struct QueryCells {
     side: [f64; 4],
     dims: [usize; 4],
     lists: Vec<Vec<u32>>,
+    /// One bit a cell: whether its list has a query (small enough to stay
+    /// in cache where the lists do not).
+    occupied: Vec<u64>,
+    /// [`QueryCells::pixel_cells`].
+    pixel_cells: [Vec<u32>; 3],
+    /// The luminances where the lightness cell changes, bracketed:
+    /// `cuts[i]` holds every luminance whose lightness coordinate's cell
+    /// can be on either side of cell `i + 1`'s lower border.
+    cuts: Vec<(f64, f64)>,
 }
 
 impl QueryCells {
-    fn new<const D: usize>(extent: [f64; 3], axes: usize, queries: &[Query<D>]) -> QueryCells {
+    fn new<const D: usize>(
+        header: &Header,
+        space: &JointSpace,
+        queries: &[Query<D>],
+    ) -> QueryCells {
+        let extent = space.extent(header);
+        let axes = D - 3;
         let mut coords: Vec<usize> = (0..axes).collect();
         coords.push(D - 3);
         let n = coords.len();
@@ -239,7 +265,14 @@ impl QueryCells {
             side,
             dims,
             lists: vec![Vec::new(); dims.iter().product()],
+            occupied: Vec::new(),
+            pixel_cells: Default::default(),
+            cuts: Vec::new(),
         };
+        cells.pixel_cells = cells.pixel_cells::<D>(space, header);
+        cells.cuts = (1..dims[axes])
+            .map(|i| cells.luminance_cut(space, axes, i))
+            .collect();
         for (q, query) in queries.iter().enumerate() {
             // The cells the reach covers, its ends widened by a slack far
             // above the rounding of the square root, of v ± reach and of
@@ -265,18 +298,129 @@ impl QueryCells {
                 }
             }
         }
+        cells.occupied = vec![0; cells.lists.len().div_ceil(64)];
+        for (c, list) in cells.lists.iter().enumerate() {
+            if !list.is_empty() {
+                cells.occupied[c / 64] |= 1 << (c % 64);
+            }
+        }
         cells
     }
 
     /// The cell of coordinate `v` along gridded axis `a`, clamped to the
     /// grid.
     fn index(&self, v: f64, a: usize) -> usize {
-        let c = ((v - self.origin[a]) / self.side[a]).floor();
-        if c.is_nan() || c <= 0.0 {
-            0
-        } else {
+        // Truncating a positive value is its floor.
+        let c = (v - self.origin[a]) / self.side[a];
+        if c > 0.0 {
             (c as usize).min(self.dims[a] - 1)
+        } else {
+            0
         }
+    }
+
+    /// The least luminance whose lightness coordinate lies in cell `i` of
+    /// axis `a` or beyond, bracketed by a margin far above the rounding of
+    /// the colour transform: the lightness coordinate never decreases
+    /// with luminance (it rounds monotone functions), so a luminance below
+    /// the bracket is in a cell before `i` and one above it in `i` or
+    /// after. Found by bisection over the f64 values in order.
+    fn luminance_cut(&self, space: &JointSpace, a: usize, i: usize) -> (f64, f64) {
+        let cell = |y: f64| self.index(space.lightness_coord(y) as f64, a);
+        // f64 values as u64 keys in the values' order.
+        let key = |y: f64| {
+            let b = y.to_bits();
+            if b >> 63 == 1 { !b } else { b | 1 << 63 }
+        };
+        let value = |k: u64| {
+            if k >> 63 == 1 {
+                f64::from_bits(k & !(1 << 63))
+            } else {
+                f64::from_bits(!k)
+            }
+        };
+        let (mut lo, mut hi) = (key(-f64::MAX), key(f64::MAX));
+        if cell(value(lo)) >= i {
+            return (f64::NEG_INFINITY, f64::NEG_INFINITY);
+        }
+        if cell(value(hi)) < i {
+            return (f64::INFINITY, f64::INFINITY);
+        }
+        // cell(lo) < i ≤ cell(hi)
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            if cell(value(mid)) >= i {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        let t = value(hi);
+        let margin = LUMINANCE_SLACK * t.abs() + f64::MIN_POSITIVE;
+        (t - margin, t + margin)
+    }
+
+    /// Each pixel's cell (column, row or frame) along the gridded image
+    /// (and time) axes, or [`STRADDLES`] where a cell border crosses the
+    /// pixel. The coordinate never decreases along an axis (it rounds
+    /// monotone functions), so the pixel's first and last values' cells
+    /// bound every value's.
+    fn pixel_cells<const D: usize>(&self, space: &JointSpace, header: &Header) -> [Vec<u32>; 3] {
+        let counts = [header.width, header.height, header.frames];
+        std::array::from_fn(|a| {
+            if a >= D - 3 {
+                return Vec::new();
+            }
+            let cell = |v: f32| {
+                let mut at = [0.0f32; 3];
+                at[a] = v;
+                let r = Record::new(at[0], at[1], at[2], [0.0; 3]);
+                self.index(space.image_point::<D>(&r)[a] as f64, a)
+            };
+            (0..counts[a])
+                .map(|i| {
+                    // Pixels past 2²⁴ are not exact in f32: left to the
+                    // exact cell.
+                    if i >= 1 << 24 {
+                        return STRADDLES;
+                    }
+                    let last = f32::from_bits(((i + 1) as f32).to_bits() - 1);
+                    match (cell(i as f32), cell(last)) {
+                        (lo, hi) if lo == hi => lo as u32,
+                        _ => STRADDLES,
+                    }
+                })
+                .collect()
+        })
+    }
+
+    /// Whether the cell of valid record `r`'s point may list a query,
+    /// from its image (and time) cell and its luminance, without its
+    /// colour transform: false only when [`QueryCells::at`] of its point
+    /// is empty.
+    #[inline]
+    fn may_list<const D: usize>(&self, space: &JointSpace, r: &Record) -> bool {
+        let axes = D - 3;
+        let mut c = [0usize; 4];
+        let at = [r.x, r.y, r.t];
+        for a in 0..axes {
+            // A valid record's value is in 0..count, so truncating is its
+            // pixel.
+            c[a] = match self.pixel_cells[a][at[a] as usize] {
+                STRADDLES => self.index(space.image_point::<D>(r)[a] as f64, a),
+                cell => cell as usize,
+            };
+        }
+        let y = luminance([r.r as f64, r.g as f64, r.b as f64]);
+        // The lightness cell lies in first..=last.
+        let first = self.cuts.partition_point(|&(_, above)| above <= y);
+        let last = self.cuts.partition_point(|&(below, _)| below <= y);
+        let d = &self.dims;
+        (first..=last).any(|l| {
+            c[axes] = l;
+            let flat = ((c[3] * d[2] + c[2]) * d[1] + c[1]) * d[0] + c[0];
+            self.occupied[flat / 64] & (1 << (flat % 64)) != 0
+        })
     }
 
     /// The queries listed in the cell of `p`.
@@ -307,7 +451,8 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             (state >> 11) as f64 / (1u64 << 53) as f64
         };
-        let extent = [40.0, 30.0, 1.0];
+        // 40 × 30 joint units at σ_image = 3.
+        let header = Header::still(120, 90, 4, Order::PassMajor);
         let queries: Vec<Query<5>> = (0..300)
             .map(|i| {
                 let p = [
@@ -329,7 +474,7 @@ mod tests {
                 }
             })
             .collect();
-        let cells = QueryCells::new(extent, 2, &queries);
+        let cells = QueryCells::new(&header, &JointSpace::DEFAULT, &queries);
         let mut checked = 0;
         for (q, query) in queries.iter().enumerate() {
             let reach = query.reach2.sqrt();
@@ -369,5 +514,91 @@ mod tests {
             }
         }
         assert!(checked > 300 * 50, "{checked}");
+    }
+
+    /// A record the gate passes over lists no query in its cell, and the
+    /// gate passes over most records whose cell lists none: in each colour
+    /// space and white, for stills and animations, with cell borders on
+    /// and inside pixels, with records from dark and negative to far
+    /// above the white.
+    #[test]
+    fn the_luminance_gate_passes_over_only_cells_without_queries() {
+        use crate::joint::ColorSpace;
+        let mut state = 5u64;
+        let mut uniform = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let header = Header {
+            frames: 3,
+            ..Header::still(60, 40, 16, Order::PassMajor)
+        };
+        let record = |u: &mut dyn FnMut() -> f64| {
+            let scale = [0.01, 1.0, 1.0, 40.0, 3e4][(u() * 5.0) as usize];
+            let mut c = || ((u() * 1.1 - 0.1) * scale) as f32;
+            let (r, g, b) = (c(), c(), c());
+            crate::dump::Record::new(
+                (u() * 60.0) as f32,
+                (u() * 40.0) as f32,
+                (u() * 2.999) as f32,
+                [r, g, b],
+            )
+        };
+        let (mut gated, mut empty) = (0, 0);
+        for color in [ColorSpace::Cielab, ColorSpace::Loglab, ColorSpace::Logluv] {
+            // σ_image 2.7 puts cell borders inside pixels.
+            for (white, sigma_image) in [(1.0, 3.0), (7.5, 2.7)] {
+                let space = JointSpace {
+                    color,
+                    white,
+                    sigma_image,
+                    ..JointSpace::DEFAULT
+                };
+                let queries5: Vec<Query<5>> = (0..40)
+                    .map(|i| Query {
+                        rec: usize::MAX,
+                        p: space.point::<5>(&record(&mut uniform)),
+                        reach2: [0.05, 0.4, 2.0][i % 3],
+                    })
+                    .collect();
+                let queries6: Vec<Query<6>> = (0..40)
+                    .map(|i| Query {
+                        rec: usize::MAX,
+                        p: space.point::<6>(&record(&mut uniform)),
+                        reach2: [0.05, 0.4, 2.0][i % 3],
+                    })
+                    .collect();
+                let cells5 = QueryCells::new(&header, &space, &queries5);
+                let cells6 = QueryCells::new(&header, &space, &queries6);
+                for _ in 0..4000 {
+                    let r = record(&mut uniform);
+                    for (listed, may) in [
+                        (
+                            !cells5.at(&space.point::<5>(&r)).is_empty(),
+                            cells5.may_list::<5>(&space, &r),
+                        ),
+                        (
+                            !cells6.at(&space.point::<6>(&r)).is_empty(),
+                            cells6.may_list::<6>(&space, &r),
+                        ),
+                    ] {
+                        assert!(
+                            may || !listed,
+                            "{color:?} white {white}: {r:?} gated but listed"
+                        );
+                        if !listed {
+                            empty += 1;
+                            gated += usize::from(!may);
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            gated * 10 > empty * 9,
+            "gated {gated} of {empty} empty cells"
+        );
     }
 }

@@ -153,12 +153,14 @@ impl<const D: usize> Grid<D> {
     fn cell_of(&self, q: &[f32; D]) -> [usize; 3] {
         let mut c = [0usize; 3];
         for a in 0..self.axes {
-            // Multiplying by a power of two is exact, so floor is exact.
-            let v = (Self::axis_value(q, a) * self.inv[a]).floor();
-            c[a] = if v <= 0.0 {
-                0
-            } else {
+            // Multiplying by a power of two is exact, so the cell is
+            // exact; truncating a positive value is its floor (without
+            // SSE4.1 `floor` is a call, not an instruction).
+            let v = Self::axis_value(q, a) * self.inv[a];
+            c[a] = if v > 0.0 {
                 (v as usize).min(self.dims[a] - 1)
+            } else {
+                0
             };
         }
         c
