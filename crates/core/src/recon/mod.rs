@@ -72,10 +72,12 @@ impl Film {
     }
 
     /// The film of every record `colour(i, r)` gives a colour to; `colour`
-    /// is called for valid records only, in file order. The film's rows are
-    /// split into one band a thread, and each band scans every record for
-    /// the samples that reach its rows: each pixel still sums its samples
-    /// in file order, so the bytes do not depend on the thread count.
+    /// is called for valid records only. Each pixel sums its samples in
+    /// file order, so the bytes do not depend on the thread count: a box
+    /// film is a per-pixel fold ([`per_pixel::fold_colours`], in place for
+    /// a pixel- or pass-major dump); otherwise the film's rows are split
+    /// into one band a thread, and each band scans every record for the
+    /// samples that reach its rows.
     pub fn of_records(
         h: &Header,
         filter: ReconFilter,
@@ -83,6 +85,16 @@ impl Film {
         colour: impl Fn(usize, &Record) -> Option<[f64; 3]> + Sync,
     ) -> Film {
         use crate::par::prelude::*;
+        if filter == ReconFilter::Box {
+            let jobs = crate::par::current_num_threads();
+            let sum = per_pixel::fold_colours(records, h, jobs, colour, |acc, c| add(acc, c, 1.0));
+            return Film {
+                width: h.width as usize,
+                height: h.height as usize,
+                filter,
+                sum,
+            };
+        }
         let mut film = Film::new(h, filter);
         let (width, height) = (film.width, film.height);
         let rows = film.sum.len() / width.max(1);
@@ -288,6 +300,52 @@ pub(crate) fn test_header(width: u32, height: u32) -> Header {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::dump::Order;
+
+    /// The box film of a pixel- or pass-major dump, folded in place, is
+    /// the film of one serial pass in file order, on 1 to 3 threads, and
+    /// with a record that is not where its order puts it.
+    #[test]
+    fn in_place_box_films_are_the_serial_film() {
+        for order in [Order::PassMajor, Order::PixelMajor] {
+            for misplace in [false, true] {
+                let p = crate::synth::SynthParams {
+                    width: 9,
+                    height: 6,
+                    spp: 5,
+                    frames: 2,
+                    order,
+                    ..crate::synth::SynthParams::default()
+                };
+                let h = p.header();
+                let mut records: Vec<Record> = p.records().collect();
+                if misplace {
+                    records[37].x = (records[37].x + 1.0) % 9.0;
+                }
+                records[11].r = f32::NAN;
+                let keep = |i: usize| !i.is_multiple_of(4);
+                // A colour of the record's own, not only its RGB.
+                let colour = |i: usize, r: &Record| {
+                    keep(i).then_some([r.r as f64, 3.0 * r.x as f64, r.b as f64])
+                };
+                let mut serial = Film::new(&h, ReconFilter::Box);
+                for (i, r) in records.iter().enumerate() {
+                    if r.validity(&h) == Validity::Valid
+                        && let Some(c) = colour(i, r)
+                    {
+                        serial.splat_rgb(r, c);
+                    }
+                }
+                for threads in 1..=3 {
+                    let pool = crate::par::pool(threads).unwrap();
+                    let film =
+                        pool.install(|| Film::of_records(&h, ReconFilter::Box, &records, colour));
+                    assert!(film.width == 9 && film.height == 6);
+                    assert!(film.sum == serial.sum, "{order:?}, {threads} threads");
+                }
+            }
+        }
+    }
 
     /// The banded film is the film of one serial pass in file order, for
     /// any number of bands, both filters, several frames and invalid

@@ -28,8 +28,21 @@ pub fn fold<A: Default + Clone + Send>(
     keep: impl Fn(usize) -> bool + Sync,
     add: impl Fn(&mut A, [f64; 3]) + Sync,
 ) -> Vec<A> {
+    let colour = |i: usize, r: &Record| keep(i).then_some([r.r as f64, r.g as f64, r.b as f64]);
+    fold_colours(records, h, jobs, colour, add)
+}
+
+/// [`fold`] of the colours `colour(i, r)` gives the valid samples it
+/// picks (record i, called for valid records only).
+pub fn fold_colours<A: Default + Clone + Send>(
+    records: &[Record],
+    h: &Header,
+    jobs: usize,
+    colour: impl Fn(usize, &Record) -> Option<[f64; 3]> + Sync,
+    add: impl Fn(&mut A, [f64; 3]) + Sync,
+) -> Vec<A> {
     let tile = (TILE_BYTES / size_of::<A>().max(1)).max(1);
-    if let Some(acc) = in_place(records, h, jobs > 1, tile, &keep, &add) {
+    if let Some(acc) = in_place(records, h, jobs > 1, tile, &colour, &add) {
         return acc;
     }
     let width = (h.width as usize).max(1);
@@ -50,8 +63,8 @@ pub fn fold<A: Default + Clone + Send>(
             else {
                 continue;
             };
-            if keep(i) {
-                add(a, [r.r as f64, r.g as f64, r.b as f64]);
+            if let Some(c) = colour(i, r) {
+                add(a, c);
             }
         }
     });
@@ -74,7 +87,7 @@ fn in_place<A: Default + Clone + Send>(
     h: &Header,
     parallel: bool,
     tile: usize,
-    keep: &(impl Fn(usize) -> bool + Sync),
+    colour: &(impl Fn(usize, &Record) -> Option<[f64; 3]> + Sync),
     add: &(impl Fn(&mut A, [f64; 3]) + Sync),
 ) -> Option<Vec<A>> {
     let pass_major = match h.order {
@@ -101,8 +114,8 @@ fn in_place<A: Default + Clone + Send>(
             if r.pixel_index(h) != first + j {
                 return false;
             }
-            if keep(rec) {
-                add(&mut acc[j], [r.r as f64, r.g as f64, r.b as f64]);
+            if let Some(c) = colour(rec, r) {
+                add(&mut acc[j], c);
             }
             true
         };
@@ -200,8 +213,9 @@ mod tests {
             // Read in place in tiles of any size (a frame has 35 pixels),
             // where the order is declared and holds.
             let push = |a: &mut Vec<usize>, c: [f64; 3]| a.push(c[0] as usize);
+            let colour = |i: usize, r: &Record| keep(i).then_some([r.r as f64, 0.0, 0.0]);
             for tile in [1, 3, 8, 35, 1000] {
-                let got = in_place(&named, &h, bands > 1, tile, &keep, &push);
+                let got = in_place(&named, &h, bands > 1, tile, &colour, &push);
                 let holds = order != Order::Unspecified && !misplace;
                 assert_eq!(
                     got.is_some(),
