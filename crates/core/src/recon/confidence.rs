@@ -152,7 +152,7 @@ pub(crate) struct Moments {
     pub(crate) n: u32,
     pub(crate) mean: [f64; 3],
     /// Σ (x − x̄)², per channel.
-    m2: [f64; 3],
+    pub(crate) m2: [f64; 3],
 }
 
 impl AsRef<Moments> for Moments {
