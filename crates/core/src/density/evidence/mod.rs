@@ -22,6 +22,7 @@
 //! [`GRID_SAMPLES`] valid samples.
 
 mod grid;
+mod query_cells;
 mod streamed;
 
 use super::{Decision, ExactSigma, FilterResult};
