@@ -99,7 +99,8 @@ impl Film {
         let (width, height) = (film.width, film.height);
         let rows = film.sum.len() / width.max(1);
         let band_rows = rows.div_ceil(crate::par::current_num_threads()).max(1);
-        // How far from its own row a sample reaches.
+        // How far from its own row a sample reaches (a box film was
+        // folded above).
         let reach = match filter {
             ReconFilter::Box => 1.0,
             ReconFilter::Gaussian { radius, .. } => radius + 1.0,

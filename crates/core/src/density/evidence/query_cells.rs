@@ -203,13 +203,10 @@ impl QueryCells {
                 let r = Record::new(at[0], at[1], at[2], [0.0; 3]);
                 self.index(space.image_point::<D>(&r)[a] as f64, a)
             };
-            (0..counts[a])
+            // Pixels past 2²⁴ are not exact in f32: not in the table, left
+            // to the exact cell.
+            (0..counts[a].min(1 << 24))
                 .map(|i| {
-                    // Pixels past 2²⁴ are not exact in f32: left to the
-                    // exact cell.
-                    if i >= 1 << 24 {
-                        return STRADDLES;
-                    }
                     let last = f32::from_bits(((i + 1) as f32).to_bits() - 1);
                     match (cell(i as f32), cell(last)) {
                         (lo, hi) if lo == hi => lo as u32,
@@ -232,21 +229,30 @@ impl QueryCells {
         for a in 0..axes {
             // A valid record's value is in 0..count, so truncating is its
             // pixel.
-            c[a] = match self.pixel_cells[a][at[a] as usize] {
+            let table = self.pixel_cells[a].get(at[a] as usize).copied();
+            c[a] = match table.unwrap_or(STRADDLES) {
                 STRADDLES => self.index(space.image_point::<D>(r)[a] as f64, a),
                 cell => cell as usize,
             };
         }
         let y = luminance([r.r as f64, r.g as f64, r.b as f64]);
-        // The lightness cell lies in first..=last.
-        let first = self.cuts.partition_point(|&(_, above)| above <= y);
-        let last = self.cuts.partition_point(|&(below, _)| below <= y);
         let d = &self.dims;
-        (first..=last).any(|l| {
+        self.lightness_cells(y).any(|l| {
             c[axes] = l;
             let flat = ((c[3] * d[2] + c[2]) * d[1] + c[1]) * d[0] + c[0];
             self.occupied[flat / 64] & (1 << (flat % 64)) != 0
         })
+    }
+
+    /// The lightness cells a colour of luminance `y` may lie in (usually
+    /// one). A luminance at or above a cut's upper end is certainly at
+    /// or beyond the cell after it: every luminance from the cut on is,
+    /// and the margin only covers rounding that is not monotone. One
+    /// below its lower end is certainly before it.
+    fn lightness_cells(&self, y: f64) -> std::ops::RangeInclusive<usize> {
+        let first = self.cuts.partition_point(|&(_, above)| above <= y);
+        let last = self.cuts.partition_point(|&(below, _)| below <= y);
+        first..=last
     }
 
     /// The queries listed in the cell of `p`.
@@ -376,12 +382,14 @@ mod tests {
         };
         let (mut gated, mut empty) = (0, 0);
         for color in [ColorSpace::Cielab, ColorSpace::Loglab, ColorSpace::Logluv] {
-            // σ_image 2.7 puts cell borders inside pixels.
-            for (white, sigma_image) in [(1.0, 3.0), (7.5, 2.7)] {
+            // σ_image 2.7 and σ_time 1.5 put cell borders inside pixels
+            // and frames.
+            for (white, sigma_image, sigma_time) in [(1.0, 3.0, 2.0), (7.5, 2.7, 1.5)] {
                 let space = JointSpace {
                     color,
                     white,
                     sigma_image,
+                    sigma_time,
                     ..JointSpace::DEFAULT
                 };
                 let queries5: Vec<Query<5>> = (0..40)
@@ -428,5 +436,68 @@ mod tests {
             gated * 10 > empty * 9,
             "gated {gated} of {empty} empty cells"
         );
+    }
+
+    /// At and around every lightness cut, in each colour space, the
+    /// cells a luminance may lie in hold the cell its lightness is in:
+    /// at the cut's ends, one f64 step beyond them, and at the luminance
+    /// the bisection found.
+    #[test]
+    fn the_lightness_cells_hold_the_cell_at_every_cut() {
+        use crate::joint::ColorSpace;
+        let header = Header::still(30, 20, 4, Order::PassMajor);
+        let step = |y: f64, up: bool| {
+            let next = if up { y.next_up() } else { y.next_down() };
+            if next.is_finite() { next } else { y }
+        };
+        let mut checked = 0;
+        for color in [ColorSpace::Cielab, ColorSpace::Loglab, ColorSpace::Logluv] {
+            for white in [1.0, 0.3] {
+                let space = JointSpace {
+                    color,
+                    white,
+                    ..JointSpace::DEFAULT
+                };
+                // Queries from dark to far above the white, so that the
+                // lightness axis has many cells.
+                let queries: Vec<Query<5>> = [-0.5, 0.0, 0.02, 0.5, 3.0, 40.0, 900.0, 2e4]
+                    .iter()
+                    .map(|&v| Query {
+                        rec: 0,
+                        p: space.point::<5>(&Record::new(5.0, 5.0, 0.0, [v; 3])),
+                        reach2: 0.3,
+                    })
+                    .collect();
+                let cells = QueryCells::new(&header, &space, &queries);
+                assert!(
+                    cells.cuts.len() >= 8,
+                    "{color:?}: {} cuts",
+                    cells.cuts.len()
+                );
+                for &(below, above) in &cells.cuts {
+                    let mid = below + (above - below) / 2.0;
+                    for y in [
+                        below,
+                        above,
+                        mid,
+                        step(below, false),
+                        step(above, true),
+                        step(mid, true),
+                    ] {
+                        if !y.is_finite() {
+                            continue;
+                        }
+                        let cell = cells.index(space.lightness_coord(y) as f64, 2);
+                        assert!(
+                            cells.lightness_cells(y).contains(&cell),
+                            "{color:?} white {white}: luminance {y} in cell {cell}, not in {:?}",
+                            cells.lightness_cells(y)
+                        );
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        assert!(checked > 200, "{checked}");
     }
 }
