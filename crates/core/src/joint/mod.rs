@@ -177,13 +177,7 @@ mod tests {
     /// and far above it, and at the f32 clamp.
     #[test]
     fn the_lightness_of_the_luminance_is_the_points_coordinate() {
-        let mut state = 11u64;
-        let mut uniform = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut uniform = crate::synth::test_units(11);
         let mut checked = 0;
         for color in [ColorSpace::Cielab, ColorSpace::Loglab, ColorSpace::Logluv] {
             for white in [1.0, 0.37, 250.0] {

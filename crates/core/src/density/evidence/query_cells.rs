@@ -278,13 +278,7 @@ mod tests {
     /// unbounded, smaller and larger than a cell.
     #[test]
     fn a_point_within_the_reach_finds_its_query_in_its_cell() {
-        let mut state = 7u64;
-        let mut uniform = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut uniform = crate::synth::test_units(7);
         // 40 × 30 joint units at σ_image = 3.
         let header = Header::still(120, 90, 4, Order::PassMajor);
         let queries: Vec<Query<5>> = (0..300)
@@ -358,13 +352,7 @@ mod tests {
     #[test]
     fn the_luminance_gate_passes_over_only_cells_without_queries() {
         use crate::joint::ColorSpace;
-        let mut state = 5u64;
-        let mut uniform = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut uniform = crate::synth::test_units(5);
         let header = Header {
             frames: 3,
             ..Header::still(60, 40, 16, Order::PassMajor)
