@@ -380,20 +380,9 @@ mod tests {
                     sigma_time,
                     ..JointSpace::DEFAULT
                 };
-                let queries5: Vec<Query<5>> = (0..40)
-                    .map(|i| Query {
-                        rec: usize::MAX,
-                        p: space.point::<5>(&record(&mut uniform)),
-                        reach2: [0.05, 0.4, 2.0][i % 3],
-                    })
-                    .collect();
-                let queries6: Vec<Query<6>> = (0..40)
-                    .map(|i| Query {
-                        rec: usize::MAX,
-                        p: space.point::<6>(&record(&mut uniform)),
-                        reach2: [0.05, 0.4, 2.0][i % 3],
-                    })
-                    .collect();
+                let sources: Vec<Record> = (0..80).map(|_| record(&mut uniform)).collect();
+                let queries5 = queries_at::<5>(&space, &sources[..40]);
+                let queries6 = queries_at::<6>(&space, &sources[40..]);
                 let cells5 = QueryCells::new(&header, &space, &queries5);
                 let cells6 = QueryCells::new(&header, &space, &queries6);
                 for _ in 0..4000 {
@@ -424,6 +413,20 @@ mod tests {
             gated * 10 > empty * 9,
             "gated {gated} of {empty} empty cells"
         );
+    }
+
+    /// Queries at the points of `records`, with squared reaches from
+    /// below a cell's to above it.
+    fn queries_at<const D: usize>(space: &JointSpace, records: &[Record]) -> Vec<Query<D>> {
+        records
+            .iter()
+            .enumerate()
+            .map(|(i, r)| Query {
+                rec: usize::MAX,
+                p: space.point::<D>(r),
+                reach2: [0.05, 0.4, 2.0][i % 3],
+            })
+            .collect()
     }
 
     /// At and around every lightness cut, in each colour space, the
