@@ -21,6 +21,7 @@
 //! inside the frame, so nothing leaks off the film.
 
 use super::Image;
+use crate::par::prelude::*;
 
 /// Per pixel, `mean − filtered`.
 pub fn removed(mean: &Image, filtered: &Image) -> Image {
@@ -35,8 +36,8 @@ pub fn removed(mean: &Image, filtered: &Image) -> Image {
 
 /// `filtered` plus `removed` spread over each source pixel's neighbourhood
 /// (radius ⌈3σ_e⌉) with weights exp(−d²/2σ_e²) normalised over the
-/// occupied pixels of its frame. Sources are visited in pixel order, so the
-/// result does not depend on threads.
+/// occupied pixels of its frame. Every pixel receives its shares in the
+/// order of the sources' pixels, so the result does not depend on threads.
 ///
 /// ```
 /// use pathdensity_core::recon::{Image, energy};
@@ -52,46 +53,96 @@ pub fn removed(mean: &Image, filtered: &Image) -> Image {
 /// assert!(out.data.iter().all(|p| (p[0] - 26.0 / 25.0).abs() < 0.01));
 /// ```
 pub fn energy_aware(filtered: &Image, removed: &Image, occupancy: &[u32], sigma: f64) -> Image {
-    let (w, h) = (filtered.width, filtered.height);
-    let r = (3.0 * sigma).ceil().max(0.0) as isize;
-    let kernel: Vec<f64> = (-r..=r)
-        .map(|d| (-((d * d) as f64) / (2.0 * sigma * sigma)).exp())
+    let spread = Spread::new(filtered, sigma, occupancy);
+    // The sources, in pixel order, each with its window's total weight.
+    let sources: Vec<(usize, f64)> = (0..removed.data.len())
+        .into_par_iter()
+        .filter(|&src| removed.data[src] != [0.0; 3] && occupancy[src] > 0)
+        .map(|src| {
+            let mut total = 0.0;
+            spread.window(src, 0..spread.rows, |_, k| total += k);
+            (src, total)
+        })
         .collect();
     let mut out = filtered.clone();
-    let n = w * h;
-    for (src, e) in removed.data.iter().enumerate() {
-        if *e == [0.0; 3] || occupancy[src] == 0 {
-            continue;
-        }
-        let frame = src / n * n;
-        let (x, y) = (((src % n) % w) as isize, ((src % n) / w) as isize);
-        let window = |visit: &mut dyn FnMut(usize, f64)| {
-            for dy in -r..=r {
-                let qy = y + dy;
-                if qy < 0 || qy >= h as isize {
-                    continue;
-                }
-                for dx in -r..=r {
-                    let qx = x + dx;
-                    if qx < 0 || qx >= w as isize {
-                        continue;
+    let w = spread.w.max(1);
+    // A band of rows a job: each takes, in pixel order, the sources whose
+    // window reaches it, and writes only its own rows.
+    out.data
+        .par_chunks_mut(BAND_ROWS * w)
+        .enumerate()
+        .for_each(|(band, pixels)| {
+            let first = band * BAND_ROWS;
+            let rows = first..first + pixels.len() / w;
+            // Sources more than r rows away reach no row of the band.
+            let from = sources.partition_point(|&(s, _)| s / w + spread.r < rows.start);
+            let to = sources.partition_point(|&(s, _)| s / w < rows.end + spread.r);
+            for &(src, total) in &sources[from..to] {
+                let e = removed.data[src];
+                spread.window(src, rows.clone(), |q, k| {
+                    for (o, v) in pixels[q - first * w].iter_mut().zip(e) {
+                        *o += v * k / total;
                     }
-                    let q = frame + qy as usize * w + qx as usize;
-                    if occupancy[q] > 0 {
-                        visit(q, kernel[(dy + r) as usize] * kernel[(dx + r) as usize]);
-                    }
-                }
-            }
-        };
-        let mut total = 0.0;
-        window(&mut |_, k| total += k);
-        window(&mut |q, k| {
-            for (o, v) in out.data[q].iter_mut().zip(e) {
-                *o += v * k / total;
+                });
             }
         });
-    }
     out
+}
+
+/// Rows of the film (over all frames) that one job of [`energy_aware`]
+/// writes.
+const BAND_ROWS: usize = 16;
+
+/// The Gaussian window of [`energy_aware`] on one film.
+struct Spread<'a> {
+    w: usize,
+    h: usize,
+    /// Rows over all frames.
+    rows: usize,
+    r: usize,
+    kernel: Vec<f64>,
+    occupancy: &'a [u32],
+}
+
+impl<'a> Spread<'a> {
+    fn new(img: &Image, sigma: f64, occupancy: &'a [u32]) -> Spread<'a> {
+        let r = (3.0 * sigma).ceil().max(0.0) as usize;
+        let kernel = (0..=2 * r)
+            .map(|i| {
+                let d = i as f64 - r as f64;
+                (-(d * d) / (2.0 * sigma * sigma)).exp()
+            })
+            .collect();
+        Spread {
+            w: img.width,
+            h: img.height,
+            rows: img.height * img.frames,
+            r,
+            kernel,
+            occupancy,
+        }
+    }
+
+    /// `visit(q, weight)` for each occupied pixel q of `src`'s window in
+    /// its frame whose row (counted over all frames) is in `rows`, in
+    /// pixel order.
+    fn window(&self, src: usize, rows: std::ops::Range<usize>, mut visit: impl FnMut(usize, f64)) {
+        let (w, r) = (self.w, self.r);
+        let (row, x) = (src / w, src % w);
+        let frame_rows = row / self.h * self.h..(row / self.h + 1) * self.h;
+        let lo = row.saturating_sub(r).max(frame_rows.start).max(rows.start);
+        let hi = (row + r + 1).min(frame_rows.end).min(rows.end);
+        let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
+        for qy in lo..hi {
+            let ky = self.kernel[qy + r - row];
+            for qx in x0..x1 {
+                let q = qy * w + qx;
+                if self.occupancy[q] > 0 {
+                    visit(q, ky * self.kernel[qx + r - x]);
+                }
+            }
+        }
+    }
 }
 
 /// Σ over the film of each channel of `img`.
@@ -104,6 +155,55 @@ pub fn channel_sums(img: &Image) -> [f64; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The spread source by source, each over its whole window: the
+    /// oracle of [`energy_aware`]'s bands.
+    fn serial(filtered: &Image, removed: &Image, occupancy: &[u32], sigma: f64) -> Image {
+        let spread = Spread::new(filtered, sigma, occupancy);
+        let mut out = filtered.clone();
+        for (src, e) in removed.data.iter().enumerate() {
+            if *e == [0.0; 3] || occupancy[src] == 0 {
+                continue;
+            }
+            let mut total = 0.0;
+            spread.window(src, 0..spread.rows, |_, k| total += k);
+            spread.window(src, 0..spread.rows, |q, k| {
+                for (o, v) in out.data[q].iter_mut().zip(e) {
+                    *o += v * k / total;
+                }
+            });
+        }
+        out
+    }
+
+    /// Bands of every height against the serial spread, bit for bit, on
+    /// films of two frames, sparse sources and empty pixels, windows wider
+    /// and narrower than a band, for one and three threads.
+    #[test]
+    fn bands_are_the_serial_spread() {
+        let mut unit = crate::synth::test_units(99);
+        for (w, h, sigma) in [(37, 45, 8.0), (5, 70, 1.5), (60, 3, 0.4), (1, 1, 2.0)] {
+            let mut removed = Image::new(w, h, 2);
+            let mut filtered = Image::new(w, h, 2);
+            let occupancy: Vec<u32> = (0..w * h * 2).map(|_| u32::from(unit() < 0.9)).collect();
+            for (f, e) in filtered.data.iter_mut().zip(&mut removed.data) {
+                *f = std::array::from_fn(|_| unit());
+                if unit() < 0.1 {
+                    *e = std::array::from_fn(|_| 100.0 * unit() - 10.0);
+                }
+            }
+            let want = serial(&filtered, &removed, &occupancy, sigma);
+            for threads in [1, 3] {
+                let got = crate::par::pool(threads)
+                    .unwrap()
+                    .install(|| energy_aware(&filtered, &removed, &occupancy, sigma));
+                let bits = |i: &Image| -> Vec<u64> {
+                    i.data.iter().flatten().map(|v| v.to_bits()).collect()
+                };
+                assert_eq!(bits(&got), bits(&want), "{w} × {h}, σ_e {sigma}");
+            }
+        }
+    }
 
     #[test]
     fn spreading_conserves_each_channel_and_skips_empty_pixels() {
