@@ -70,11 +70,6 @@ pub struct Shared<'a> {
     groups: OnceLock<(PixelGroups<'a>, f64)>,
     /// Every pixel's confidence interval (the `_ci` methods).
     interval: OnceLock<(Interval, f64)>,
-    /// Every pixel's statistics of all its valid samples, where both the
-    /// intervals of all samples and of the accepted ones are wanted: the
-    /// first are made from them, and the second take them for every
-    /// pixel without a rejected sample ([`statmc::stats_of_kept`]).
-    all_stats: OnceLock<(statmc::AllStats, f64)>,
     /// Channels OIDN's input had non-finite, and negative, set to 0, over
     /// every image denoised.
     oidn_zeroed: [AtomicU64; 2],
@@ -87,7 +82,6 @@ impl<'a> Shared<'a> {
             header,
             groups: OnceLock::new(),
             interval: OnceLock::new(),
-            all_stats: OnceLock::new(),
             oidn_zeroed: Default::default(),
         }
     }
@@ -104,37 +98,21 @@ impl<'a> Shared<'a> {
     }
 
     /// Makes now the shared work of `images` (as `images_of` lists them)
-    /// that reads only the samples: the confidence intervals, from every
-    /// pixel's statistics where the accepted samples' intervals follow.
-    /// The pipeline makes it beside the replay for the images that follow
-    /// it.
+    /// that reads only the samples: the confidence intervals. The pipeline
+    /// makes it beside the replay for the images that follow it.
     pub fn prepare(&self, images: &[(Method, bool)]) {
-        let wanted = |piece: Piece| images.iter().any(|(m, _)| Piece::of(*m).contains(&piece));
-        if wanted(Piece::Interval) {
-            if wanted(Piece::AcceptedInterval) {
-                self.all_stats
-                    .get_or_init(|| timed(|| statmc::all_stats(self.records, self.header, 1)));
-            }
+        if images
+            .iter()
+            .any(|(m, _)| Piece::of(*m).contains(&Piece::Interval))
+        {
             self.interval();
         }
     }
 
-    /// The seconds of every pixel's statistics, where they were made: both
-    /// the intervals of all samples and of the accepted ones count them.
-    fn all_stats_seconds(&self) -> f64 {
-        self.all_stats.get().map_or(0.0, |(_, s)| *s)
-    }
-
-    /// Every pixel's confidence interval, made once: from every pixel's
-    /// statistics where [`Self::prepare`] made them (the same moments).
+    /// Every pixel's confidence interval, made once.
     fn interval(&self) -> &(Interval, f64) {
-        self.interval.get_or_init(|| match self.all_stats.get() {
-            Some((all, s)) => {
-                let (interval, t) =
-                    timed(|| confidence::from_moments(&all.stats, self.header, confidence::Z));
-                (interval, s + t)
-            }
-            None => timed(|| confidence::interval(self.records, self.header, confidence::Z)),
+        self.interval.get_or_init(|| {
+            timed(|| confidence::interval(self.records, self.header, confidence::Z))
         })
     }
 }
@@ -368,10 +346,9 @@ impl<'s, 'a> Estimators<'s, 'a> {
         let (all, all_s) = self.shared.interval();
         let white = 1.0 / self.config.exposure;
         let (out, t) = timed(|| guided::guide(img, accepted, all, white));
-        let shared = self.shared.all_stats_seconds();
         (
             out,
-            seconds.max(self.core.replay_seconds) + accepted_s + all_s - shared + t,
+            seconds.max(self.core.replay_seconds) + accepted_s + all_s + t,
         )
     }
 
@@ -398,8 +375,9 @@ impl<'s, 'a> Estimators<'s, 'a> {
         let decisions = self
             .decisions
             .expect("an image that needs the decisions is made with them");
-        let h = self.shared.header;
-        let (stats, s) = self.accepted_stats(decisions);
+        let (records, h) = (self.shared.records, self.shared.header);
+        let (stats, s) =
+            timed(|| statmc::stats_of(records, h, |i| Decision::accepted(decisions[i])));
         let ((interval, ti), (window, tw)) = crate::par::join(
             || timed(|| confidence::from_moments(&stats, h, self.config.guide_z)),
             || timed(|| statmc::Window::new(&stats, h)),
@@ -414,34 +392,20 @@ impl<'s, 'a> Estimators<'s, 'a> {
         let _ = self.statmc.set((Arc::new(img), seconds));
     }
 
-    /// Every pixel's statistics of its accepted samples, and their
-    /// seconds (those of all samples' statistics, where they are taken
-    /// from them, included).
-    fn accepted_stats(&self, decisions: &[u8]) -> (Vec<statmc::Stats>, f64) {
-        let (records, h) = (self.shared.records, self.shared.header);
-        let accepted = |i: usize| Decision::accepted(decisions[i]);
-        match self.shared.all_stats.get() {
-            Some((all, s)) => {
-                let (stats, t) = timed(|| statmc::stats_of_kept(records, h, all, accepted));
-                (stats, s + t)
-            }
-            None => timed(|| statmc::stats_of(records, h, accepted)),
-        }
-    }
-
     /// The accepted samples' intervals, made once, and their seconds.
     fn accepted_interval(&self) -> &(Interval, f64) {
         let decisions = self
             .decisions
             .expect("an image that needs the decisions is made with them");
-        let (records, h, z) = (self.shared.records, self.shared.header, self.config.guide_z);
         self.accepted_interval.get_or_init(|| {
-            if self.shared.all_stats.get().is_some() {
-                let (stats, s) = self.accepted_stats(decisions);
-                let (interval, t) = timed(|| confidence::from_moments(&stats, h, z));
-                return (interval, s + t);
-            }
-            timed(|| confidence::interval_of(records, h, z, |i| Decision::accepted(decisions[i])))
+            timed(|| {
+                confidence::interval_of(
+                    self.shared.records,
+                    self.shared.header,
+                    self.config.guide_z,
+                    |i| Decision::accepted(decisions[i]),
+                )
+            })
         })
     }
 

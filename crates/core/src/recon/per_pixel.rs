@@ -28,58 +28,8 @@ pub fn fold<A: Default + Clone + Send>(
     keep: impl Fn(usize) -> bool + Sync,
     add: impl Fn(&mut A, [f64; 3]) + Sync,
 ) -> Vec<A> {
-    fold_placed(records, h, jobs, keep, add).0
-}
-
-/// [`fold`], and whether it read the dump in place: then every valid
-/// record lies where the declared order puts it, and [`fold_pixels`] may
-/// read a few pixels' samples alone.
-pub fn fold_placed<A: Default + Clone + Send>(
-    records: &[Record],
-    h: &Header,
-    jobs: usize,
-    keep: impl Fn(usize) -> bool + Sync,
-    add: impl Fn(&mut A, [f64; 3]) + Sync,
-) -> (Vec<A>, bool) {
     let colour = |i: usize, r: &Record| keep(i).then_some([r.r as f64, r.g as f64, r.b as f64]);
-    let tile = (TILE_BYTES / size_of::<A>().max(1)).max(1);
-    match in_place(records, h, jobs > 1, tile, &colour, &add) {
-        Some(acc) => (acc, true),
-        None => (scan(records, h, jobs, &colour, &add), false),
-    }
-}
-
-/// For each of `pixels` (indices over all frames), `add` folded over its
-/// valid samples that `keep(i)` picks, in file order, reading only those
-/// pixels' records: for a dump that [`fold_placed`] read in place, whose
-/// records all lie where its order puts them.
-pub fn fold_pixels<A: Default + Send>(
-    records: &[Record],
-    h: &Header,
-    pixels: &[usize],
-    keep: impl Fn(usize) -> bool + Sync,
-    add: impl Fn(&mut A, [f64; 3]) + Sync,
-) -> Vec<A> {
-    let (per_frame, spp) = (h.pixels(), h.spp as usize);
-    let pass_major = h.order == Order::PassMajor;
-    pixels
-        .par_iter()
-        .map(|&px| {
-            let mut acc = A::default();
-            for s in 0..spp {
-                let i = if pass_major {
-                    (px / per_frame * spp + s) * per_frame + px % per_frame
-                } else {
-                    px * spp + s
-                };
-                let r = &records[i];
-                if r.validity(h) == Validity::Valid && keep(i) {
-                    add(&mut acc, [r.r as f64, r.g as f64, r.b as f64]);
-                }
-            }
-            acc
-        })
-        .collect()
+    fold_colours(records, h, jobs, colour, add)
 }
 
 /// [`fold`] of the colours `colour(i, r)` gives the valid samples it
@@ -95,18 +45,6 @@ pub fn fold_colours<A: Default + Clone + Send>(
     if let Some(acc) = in_place(records, h, jobs > 1, tile, &colour, &add) {
         return acc;
     }
-    scan(records, h, jobs, &colour, &add)
-}
-
-/// [`fold_colours`] in bands of rows, each band's job scanning every
-/// record for its own pixels.
-fn scan<A: Default + Clone + Send>(
-    records: &[Record],
-    h: &Header,
-    jobs: usize,
-    colour: &(impl Fn(usize, &Record) -> Option<[f64; 3]> + Sync),
-    add: &(impl Fn(&mut A, [f64; 3]) + Sync),
-) -> Vec<A> {
     let width = (h.width as usize).max(1);
     let pixels = h.pixels() * h.frames as usize;
     let mut acc = vec![A::default(); pixels];

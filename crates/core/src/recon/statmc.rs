@@ -37,7 +37,7 @@
 
 use super::confidence::Moments;
 use super::{Image, per_pixel};
-use crate::dump::{Header, Record, Validity};
+use crate::dump::{Header, Record};
 use crate::par::prelude::*;
 
 /// The window's radius R, in pixels.
@@ -317,67 +317,14 @@ pub(crate) fn stats_of(
     h: &Header,
     keep: impl Fn(usize) -> bool + Sync,
 ) -> Vec<Stats> {
-    fold_stats(records, h, crate::par::current_num_threads(), keep).0
-}
-
-/// Every pixel's statistics of all its valid samples.
-pub(crate) struct AllStats {
-    pub(crate) stats: Vec<Stats>,
-    /// Whether every valid record lies where the dump's declared order
-    /// puts it ([`per_pixel::fold_placed`]).
-    placed: bool,
-}
-
-/// [`AllStats`] by up to `jobs` jobs at a time (1: on this thread alone).
-pub(crate) fn all_stats(records: &[Record], h: &Header, jobs: usize) -> AllStats {
-    let (stats, placed) = fold_stats(records, h, jobs, |_| true);
-    AllStats { stats, placed }
-}
-
-/// [`per_pixel::fold_placed`] of [`Stats::add`].
-fn fold_stats(
-    records: &[Record],
-    h: &Header,
-    jobs: usize,
-    keep: impl Fn(usize) -> bool + Sync,
-) -> (Vec<Stats>, bool) {
+    let bands = crate::par::current_num_threads();
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2 (checked just above).
         let add = |s: &mut Stats, x: [f64; 3]| unsafe { avx2::add(s, x) };
-        return per_pixel::fold_placed(records, h, jobs, keep, add);
+        return per_pixel::fold(records, h, bands, keep, add);
     }
-    per_pixel::fold_placed(records, h, jobs, keep, Stats::add)
-}
-
-/// [`stats_of`] from `all`: a pixel whose valid samples `keep` all picks
-/// has the same samples in the same order, so the same statistics, and
-/// only the pixels holding a sample it leaves out are folded again (after
-/// the replay, the pixels with a rejected sample: about one in a hundred
-/// at 1080p × 64 spp), from their own records alone where the dump was
-/// read in place.
-pub(crate) fn stats_of_kept(
-    records: &[Record],
-    h: &Header,
-    all: &AllStats,
-    keep: impl Fn(usize) -> bool + Sync,
-) -> Vec<Stats> {
-    if !all.placed {
-        return stats_of(records, h, keep);
-    }
-    let mut again: Vec<usize> = (0..records.len())
-        .into_par_iter()
-        .filter(|&i| !keep(i) && records[i].validity(h) == Validity::Valid)
-        .map(|i| records[i].pixel_index(h))
-        .collect();
-    again.sort_unstable();
-    again.dedup();
-    let folded: Vec<Stats> = per_pixel::fold_pixels(records, h, &again, keep, Stats::add);
-    let mut stats = all.stats.clone();
-    for (&px, s) in again.iter().zip(folded) {
-        stats[px] = s;
-    }
-    stats
+    per_pixel::fold(records, h, bands, keep, Stats::add)
 }
 
 /// Pixels per run of a row that the window takes at once: the run's
@@ -841,65 +788,6 @@ mod tests {
             }
         }
         assert!(checked > 10_000, "{checked}");
-    }
-
-    /// The kept samples' statistics taken from all samples' are the fold
-    /// of the kept samples, bit for bit: pixel- and pass-major dumps read
-    /// in place (pixels folded again from their own records), an
-    /// unspecified order and a misplaced record (folded again by a scan),
-    /// invalid records, pixels with and without a left-out sample.
-    #[test]
-    fn kept_statistics_are_the_fold_of_the_kept() {
-        use crate::dump::Order;
-        use crate::synth::SynthParams;
-        let bits = |s: &Stats| {
-            let f = [s.x.mean, s.x.m2, s.y_mean, s.y_m2];
-            (s.x.n, f.map(|a| a.map(f64::to_bits)))
-        };
-        for (order, misplace) in [
-            (Order::PixelMajor, false),
-            (Order::PassMajor, false),
-            (Order::PassMajor, true),
-            (Order::Unspecified, false),
-        ] {
-            let synth = SynthParams {
-                width: 9,
-                height: 7,
-                frames: 2,
-                spp: 12,
-                order,
-                ..SynthParams::default()
-            };
-            let (h, mut records): (Header, Vec<Record>) =
-                (synth.header(), synth.records().collect());
-            records[3].x = f32::NAN;
-            records[10].y = -1.0;
-            if misplace {
-                // A sample of pixel (0, 0) where the order has another pixel's.
-                records[200].x = 0.5;
-                records[200].y = 0.5;
-            }
-            let keep = |i: usize| (i * 7919) % 13 != 4 || i > 1000;
-            let all = all_stats(&records, &h, 3);
-            assert_eq!(all.placed, order != Order::Unspecified && !misplace);
-            let want = stats_of(&records, &h, keep);
-            let got = stats_of_kept(&records, &h, &all, keep);
-            let kept_all = want
-                .iter()
-                .zip(&all.stats)
-                .filter(|(w, a)| bits(w) == bits(a));
-            assert!(
-                kept_all.count() > 20,
-                "{order}: pixels without a left-out sample"
-            );
-            for (px, (got, want)) in got.iter().zip(&want).enumerate() {
-                assert_eq!(
-                    bits(got),
-                    bits(want),
-                    "{order} misplaced {misplace}: pixel {px}"
-                );
-            }
-        }
     }
 
     /// The four-at-a-time loop gives the pair-by-pair loop's weights and
