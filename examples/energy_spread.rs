@@ -2,7 +2,7 @@
 //! filtered_energy and guided images' step) on a synthetic 1920 × 1080
 //! frame where one pixel in a hundred lost energy, as a 1080p × 64-spp
 //! frame's rejected samples leave it: seconds at 1 and 2 threads
-//! (docs/BENCHMARKS.md, "The default run").
+//! (docs/BENCHMARKS.md, "The removed energy spread in bands").
 //!
 //!     cargo run --release --example energy_spread -- [ROUNDS]
 
