@@ -274,7 +274,7 @@ fn the_final_pass_against_all_merges_its_jobs_exactly() {
     only_wanted(&mut want.sigma, recs.len(), share);
     for threads in [1, 2] {
         let pool = pipeline::thread_pool(threads).unwrap();
-        for how in [AllSamples::Grid, AllSamples::Streamed] {
+        for how in [AllSamples::Grid, AllSamples::Streamed, AllSamples::Sparse] {
             let got = pool.install(|| replay_all(&recs, &h, &c, 1.0, share, how));
             assert_eq!(got.decisions, want.decisions, "{threads} threads {how:?}");
             assert_eq!(got.counts, want.counts);

@@ -18,8 +18,9 @@
 //! the same results: a grid over every valid sample ([`grid`]: fast, 24
 //! bytes a sample), or the stored samples as queries and the dump read
 //! past them once ([`streamed`]: memory proportional to T, slower when T
-//! is sparse or k large). [`AllSamples::for_dump`] picks the grid up to
-//! [`GRID_SAMPLES`] valid samples.
+//! is sparse or k large). [`AllSamples::for_dump`] picks, up to
+//! [`GRID_SAMPLES`] valid samples, the streamed pass where its queries are
+//! few and near few samples, and the grid elsewhere; streamed beyond.
 
 mod grid;
 mod query_cells;
@@ -40,13 +41,17 @@ pub enum AllSamples {
     Grid,
     /// The stored samples as queries, the dump read past them once.
     Streamed,
+    /// Streamed where its queries are sparse (a few distance tests a
+    /// sample, [`streamed::SPARSE_TESTS`]), else the grid.
+    Sparse,
 }
 
 impl AllSamples {
-    /// The grid up to [`GRID_SAMPLES`] valid samples, streamed beyond.
+    /// Up to [`GRID_SAMPLES`] valid samples the streamed pass where its
+    /// queries are sparse and the grid elsewhere; streamed beyond.
     pub fn for_dump(valid: u64) -> AllSamples {
         if valid <= GRID_SAMPLES {
-            AllSamples::Grid
+            AllSamples::Sparse
         } else {
             AllSamples::Streamed
         }
@@ -79,18 +84,18 @@ pub fn final_pass_against_all_with(
     how: AllSamples,
 ) {
     let t = std::time::Instant::now();
-    match (how, header.animated()) {
-        (AllSamples::Grid, false) => {
-            grid::against_all::<5>(records, header, space, k, exact, result)
-        }
-        (AllSamples::Grid, true) => {
+    let sparse_only = how == AllSamples::Sparse;
+    let streamed = how != AllSamples::Grid
+        && if header.animated() {
+            streamed::against_all::<6>(records, header, space, k, exact, result, sparse_only)
+        } else {
+            streamed::against_all::<5>(records, header, space, k, exact, result, sparse_only)
+        };
+    if !streamed {
+        if header.animated() {
             grid::against_all::<6>(records, header, space, k, exact, result)
-        }
-        (AllSamples::Streamed, false) => {
-            streamed::against_all::<5>(records, header, space, k, exact, result)
-        }
-        (AllSamples::Streamed, true) => {
-            streamed::against_all::<6>(records, header, space, k, exact, result)
+        } else {
+            grid::against_all::<5>(records, header, space, k, exact, result)
         }
     }
     if let Some(s) = result.sigma.as_mut() {

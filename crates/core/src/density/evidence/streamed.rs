@@ -27,6 +27,26 @@ const JOBS_PER_THREAD: usize = 2;
 /// pixel.
 const MATES_PER_SIDE: usize = 32;
 
+/// Below [`super::GRID_SAMPLES`] the streamed pass is taken only where
+/// its queries are at most this share of the valid samples (checked before
+/// anything is built for it)…
+pub(super) const SPARSE_QUERIES: f64 = 1e-3;
+
+/// … and where its distance tests, estimated from every
+/// [`ESTIMATE_STRIDE`]-th record, are at most this many a valid sample.
+/// The grid computes every sample's joint point instead; on 33 dumps
+/// (three renderers, 16–256 spp) the streamed pass was faster below about
+/// 4 tests a sample and slower above 5 (docs/BENCHMARKS.md, "F6a's
+/// final pass").
+pub(super) const SPARSE_TESTS: f64 = 3.0;
+
+/// Records apart in the estimate of the distance tests.
+const ESTIMATE_STRIDE: usize = 61;
+
+/// F6a's pass streamed past the stored samples. With `sparse_only`, it
+/// gives up, and returns false, where its queries are not sparse
+/// ([`SPARSE_QUERIES`], [`SPARSE_TESTS`]) and the grid would be faster;
+/// else it judges them and returns true.
 pub(super) fn against_all<const D: usize>(
     records: &[Record],
     header: &Header,
@@ -34,12 +54,21 @@ pub(super) fn against_all<const D: usize>(
     k: usize,
     exact: ExactSigma,
     result: &mut FilterResult,
-) {
+    sparse_only: bool,
+) -> bool {
     let extent = space.extent(header);
+    let valid = result.counts.valid.max(1) as f64;
     // T: the samples the paper's replay stored, which its final pass judged.
     let stored: Vec<usize> = (0..records.len())
         .filter(|&i| super::stored(result, i))
         .collect();
+    let asked_count = stored
+        .iter()
+        .filter(|&&i| super::needs_search(result, exact, i))
+        .count();
+    if sparse_only && asked_count as f64 > SPARSE_QUERIES * valid {
+        return false;
+    }
     let mut t_index = Grid::<D>::new(extent);
     let ids: Vec<u32> = stored
         .iter()
@@ -84,6 +113,22 @@ pub(super) fn against_all<const D: usize>(
     // found through a grid over the image (and time) axes where each query
     // is listed in every cell its reach touches.
     let cells = QueryCells::new(header, space, &queries);
+    if sparse_only {
+        let tests: usize = (0..records.len())
+            .into_par_iter()
+            .step_by(ESTIMATE_STRIDE)
+            .map(|i| {
+                let r = &records[i];
+                if r.validity(header) != Validity::Valid || !cells.may_list::<D>(space, r) {
+                    return 0;
+                }
+                cells.at(&space.point::<D>(r)).len()
+            })
+            .sum();
+        if (tests * ESTIMATE_STRIDE) as f64 > SPARSE_TESTS * valid {
+            return false;
+        }
+    }
     let jobs = JOBS_PER_THREAD * crate::par::current_num_threads();
     let per_job = records.len().div_ceil(jobs).max(1);
     let partial: Vec<Vec<KBest>> = records
@@ -128,6 +173,7 @@ pub(super) fn against_all<const D: usize>(
     for (query, &sigma) in queries.iter().zip(&verdicts) {
         super::record(result, exact, query.rec, sigma < 1.0, Some(sigma));
     }
+    true
 }
 
 /// The records near a record in the dump's declared order: a pass apart
@@ -182,4 +228,63 @@ pub(super) struct Query<const D: usize> {
     pub(super) rec: usize,
     pub(super) p: [f32; D],
     pub(super) reach2: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::FilterConfig;
+    use crate::density::{ReplayOptions, run};
+    use crate::progress::Silent;
+    use crate::synth::SynthParams;
+
+    /// With `sparse_only`, a smooth field with a few fireflies is judged
+    /// here; one with many, and one whose few fireflies' reaches cover
+    /// most of a small film (below the queries' share, above the tests'),
+    /// are left to the grid untouched.
+    #[test]
+    fn sparse_only_takes_few_queries_and_leaves_many() {
+        let cases = [
+            (160, 120, 8, 0.00005, true),
+            (160, 120, 8, 0.01, false),
+            (48, 40, 32, 0.0005, false),
+        ];
+        for (width, height, spp, fireflies, takes) in cases {
+            let p = SynthParams {
+                width,
+                height,
+                spp,
+                firefly_fraction: fireflies,
+                order: Order::PassMajor,
+                seed: 5,
+                ..SynthParams::default()
+            };
+            let (h, recs): (Header, Vec<Record>) = (p.header(), p.records().collect());
+            let config = FilterConfig::DEFAULT;
+            let space = config.space(1.0);
+            let options = ReplayOptions::default();
+            let mut r = run(&recs, &h, &space, config.k, config.index, &options, &Silent);
+            let (decisions, counts) = (r.decisions.clone(), r.counts.clone());
+            assert!(
+                counts.rejected > 0,
+                "fireflies {fireflies}: nothing to judge"
+            );
+            let took =
+                against_all::<5>(&recs, &h, &space, config.k, ExactSigma::None, &mut r, true);
+            let share = counts.rejected as f64 / counts.valid as f64;
+            assert_eq!(
+                took, takes,
+                "{width} × {height}, fireflies {fireflies}: {counts:?}"
+            );
+            if width == 48 {
+                assert!(
+                    share <= SPARSE_QUERIES,
+                    "queries {share}: the tests must decide"
+                );
+            }
+            if !took {
+                assert!(r.decisions == decisions && r.counts == counts);
+            }
+        }
+    }
 }
