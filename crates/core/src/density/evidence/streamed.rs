@@ -36,8 +36,8 @@ pub(super) const SPARSE_QUERIES: f64 = 1e-3;
 /// [`ESTIMATE_STRIDE`]-th record, are at most this many a valid sample.
 /// The grid computes every sample's joint point instead; on 33 dumps
 /// (three renderers, 16–256 spp) the streamed pass was faster below about
-/// 4 tests a sample and slower above 5 (docs/BENCHMARKS.md, "F6a's
-/// final pass").
+/// 4 tests a sample and, on all but one, no faster above 5
+/// (docs/BENCHMARKS.md, "F6a's final pass").
 pub(super) const SPARSE_TESTS: f64 = 3.0;
 
 /// Records apart in the estimate of the distance tests.
