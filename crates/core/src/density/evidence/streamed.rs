@@ -233,8 +233,7 @@ pub(super) struct Query<const D: usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::FilterConfig;
-    use crate::density::{ReplayOptions, run};
+    use crate::density::{IndexKind, ReplayOptions, run};
     use crate::progress::Silent;
     use crate::synth::SynthParams;
 
@@ -260,17 +259,16 @@ mod tests {
                 ..SynthParams::default()
             };
             let (h, recs): (Header, Vec<Record>) = (p.header(), p.records().collect());
-            let config = FilterConfig::DEFAULT;
-            let space = config.space(1.0);
+            // The shipped joint space and k.
+            let (space, k) = (JointSpace::DEFAULT, 8);
             let options = ReplayOptions::default();
-            let mut r = run(&recs, &h, &space, config.k, config.index, &options, &Silent);
+            let mut r = run(&recs, &h, &space, k, IndexKind::Grid, &options, &Silent);
             let (decisions, counts) = (r.decisions.clone(), r.counts.clone());
             assert!(
                 counts.rejected > 0,
                 "fireflies {fireflies}: nothing to judge"
             );
-            let took =
-                against_all::<5>(&recs, &h, &space, config.k, ExactSigma::None, &mut r, true);
+            let took = against_all::<5>(&recs, &h, &space, k, ExactSigma::None, &mut r, true);
             let share = counts.rejected as f64 / counts.valid as f64;
             assert_eq!(
                 took, takes,
