@@ -17,8 +17,8 @@
 //! Two ways to find a stored sample's k nearest among every sample, with
 //! the same results: a grid over every valid sample ([`grid`]: fast, 24
 //! bytes a sample), or the stored samples as queries and the dump read
-//! past them once ([`streamed`]: memory proportional to T, slower when T
-//! is sparse or k large). [`AllSamples::for_dump`] picks, up to
+//! past them once ([`streamed`]: memory proportional to T, slower where
+//! the queries are many or reach far). [`AllSamples::for_dump`] picks, up to
 //! [`GRID_SAMPLES`] valid samples, the streamed pass where its queries are
 //! few and near few samples, and the grid elsewhere; streamed beyond.
 
