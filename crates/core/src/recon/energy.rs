@@ -156,18 +156,43 @@ pub fn channel_sums(img: &Image) -> [f64; 3] {
 mod tests {
     use super::*;
 
-    /// The spread source by source, each over its whole window: the
-    /// oracle of [`energy_aware`]'s bands.
+    /// The spread source by source, each over its whole window, as it was
+    /// written before the bands (its own kernel and window): the oracle.
     fn serial(filtered: &Image, removed: &Image, occupancy: &[u32], sigma: f64) -> Image {
-        let spread = Spread::new(filtered, sigma, occupancy);
+        let (w, h) = (filtered.width, filtered.height);
+        let r = (3.0 * sigma).ceil().max(0.0) as isize;
+        let kernel: Vec<f64> = (-r..=r)
+            .map(|d| (-((d * d) as f64) / (2.0 * sigma * sigma)).exp())
+            .collect();
         let mut out = filtered.clone();
+        let n = w * h;
         for (src, e) in removed.data.iter().enumerate() {
             if *e == [0.0; 3] || occupancy[src] == 0 {
                 continue;
             }
+            let frame = src / n * n;
+            let (x, y) = (((src % n) % w) as isize, ((src % n) / w) as isize);
+            let window = |visit: &mut dyn FnMut(usize, f64)| {
+                for dy in -r..=r {
+                    let qy = y + dy;
+                    if qy < 0 || qy >= h as isize {
+                        continue;
+                    }
+                    for dx in -r..=r {
+                        let qx = x + dx;
+                        if qx < 0 || qx >= w as isize {
+                            continue;
+                        }
+                        let q = frame + qy as usize * w + qx as usize;
+                        if occupancy[q] > 0 {
+                            visit(q, kernel[(dy + r) as usize] * kernel[(dx + r) as usize]);
+                        }
+                    }
+                }
+            };
             let mut total = 0.0;
-            spread.window(src, 0..spread.rows, |_, k| total += k);
-            spread.window(src, 0..spread.rows, |q, k| {
+            window(&mut |_, k| total += k);
+            window(&mut |q, k| {
                 for (o, v) in out.data[q].iter_mut().zip(e) {
                     *o += v * k / total;
                 }

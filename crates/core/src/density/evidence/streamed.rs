@@ -35,9 +35,8 @@ pub(super) const SPARSE_QUERIES: f64 = 1e-3;
 /// … and where its distance tests, estimated from every
 /// [`ESTIMATE_STRIDE`]-th record, are at most this many a valid sample.
 /// The grid computes every sample's joint point instead; on 33 dumps
-/// (three renderers, 16–256 spp) the streamed pass was faster below about
-/// 4 tests a sample and, on all but one, no faster above 5
-/// (docs/BENCHMARKS.md, "F6a's final pass").
+/// (three renderers, 16–256 spp) the two broke even at about 4–5 tests a
+/// sample (docs/BENCHMARKS.md, "F6a's final pass").
 pub(super) const SPARSE_TESTS: f64 = 3.0;
 
 /// Records apart in the estimate of the distance tests.
@@ -268,7 +267,15 @@ mod tests {
                 counts.rejected > 0,
                 "fireflies {fireflies}: nothing to judge"
             );
-            let took = against_all::<5>(&recs, &h, &space, k, ExactSigma::None, &mut r, true);
+            let mut by_grid = r.clone();
+            let none = ExactSigma::None;
+            super::super::grid::against_all::<5>(&recs, &h, &space, k, none, &mut by_grid);
+            let took = against_all::<5>(&recs, &h, &space, k, none, &mut r, true);
+            // Either way, the grid's verdicts.
+            if took {
+                assert!(r.decisions == by_grid.decisions && r.counts == by_grid.counts);
+                assert_ne!(r.decisions, decisions, "F6a changed no verdict");
+            }
             let share = counts.rejected as f64 / counts.valid as f64;
             assert_eq!(
                 took, takes,
