@@ -112,17 +112,20 @@ pub(super) fn against_all<const D: usize>(
     // found through a grid over the image (and time) axes where each query
     // is listed in every cell its reach touches.
     let cells = QueryCells::new(header, space, &queries);
+    // A valid sample's point and the queries its cell lists, for a sample
+    // whose cell may list any.
+    let offered = |r: &Record| {
+        let listed = r.validity(header) == Validity::Valid && cells.may_list::<D>(space, r);
+        listed.then(|| {
+            let p = space.point::<D>(r);
+            (p, cells.at(&p))
+        })
+    };
     if sparse_only {
         let tests: usize = (0..records.len())
             .into_par_iter()
             .step_by(ESTIMATE_STRIDE)
-            .map(|i| {
-                let r = &records[i];
-                if r.validity(header) != Validity::Valid || !cells.may_list::<D>(space, r) {
-                    return 0;
-                }
-                cells.at(&space.point::<D>(r)).len()
-            })
+            .map(|i| offered(&records[i]).map_or(0, |(_, qs)| qs.len()))
             .sum();
         if (tests * ESTIMATE_STRIDE) as f64 > SPARSE_TESTS * valid {
             return false;
@@ -136,12 +139,11 @@ pub(super) fn against_all<const D: usize>(
         .map(|(c, chunk)| {
             let mut kbs = vec![KBest::new(k); queries.len()];
             for (j, r) in chunk.iter().enumerate() {
-                if r.validity(header) != Validity::Valid || !cells.may_list::<D>(space, r) {
+                let Some((p, listed)) = offered(r) else {
                     continue;
-                }
+                };
                 let rec = c * per_job + j;
-                let p = space.point::<D>(r);
-                for &q in cells.at(&p) {
+                for &q in listed {
                     let query = &queries[q as usize];
                     if query.rec == rec {
                         continue;
