@@ -27,7 +27,7 @@ use crate::recon::confidence::{self, Interval};
 use crate::recon::groups::PixelGroups;
 use crate::recon::mon::{self, MonImages};
 use crate::recon::robust::{self, RobustImages};
-use crate::recon::{Image, Reconstruction, clamp, energy, guided, rwmc, statmc};
+use crate::recon::{Image, Reconstruction, clamp, energy, guided, held_out, rwmc, statmc};
 
 /// The mean and filtered images and what the image-space methods need.
 pub struct Core {
@@ -326,7 +326,14 @@ impl<'s, 'a> Estimators<'s, 'a> {
             }
             Method::GuidedOidn => {
                 let (denoised, s) = self.oidn_mean()?;
-                made(self.guided(denoised, *s))
+                let (mut out, s) = self.guided(denoised, *s);
+                let occupancy = &rec.occupancy;
+                let oidn = |img: &Image| {
+                    imagespace::oidn::denoise(img, occupancy, self.aux).map(|d| d.image)
+                };
+                let (decided, t) = timed(|| self.held_out(&mut out, oidn));
+                decided?;
+                (Arc::new(out), s + t)
             }
         })
     }
@@ -350,6 +357,43 @@ impl<'s, 'a> Estimators<'s, 'a> {
             out,
             seconds.max(self.core.replay_seconds) + accepted_s + all_s + t,
         )
+    }
+
+    /// `g`, the guided image of the denoiser `denoise`, with its white
+    /// pixels decided by the held-out halves ([`held_out`]): each half's
+    /// mean denoised and guided by that half's samples alone. Nothing is
+    /// made where no pixel is white.
+    fn held_out<E>(
+        &self,
+        g: &mut Image,
+        denoise: impl Fn(&Image) -> Result<Image, E>,
+    ) -> Result<(), E> {
+        let (all, _) = self.shared.interval();
+        let white = 1.0 / self.config.exposure;
+        let any_white = (0..g.data.len())
+            .into_par_iter()
+            .any(|px| guided::shown_white(all, px, &g.data[px], white));
+        if !any_white {
+            return Ok(());
+        }
+        let decisions = self
+            .decisions
+            .expect("an image that needs the decisions is made with them");
+        let (records, h) = (self.shared.records, self.shared.header);
+        let odd = held_out::split(records, h);
+        let half = |second: bool| -> Result<(Image, Interval), E> {
+            let of_half = |i: usize| held_out::in_second(&odd, i) == second;
+            let all = confidence::interval_of(records, h, confidence::Z, of_half);
+            let accepted = confidence::interval_of(records, h, self.config.guide_z, |i| {
+                of_half(i) && Decision::accepted(decisions[i])
+            });
+            let d = denoise(&all.centre)?;
+            Ok((guided::guide(&d, &accepted, &all, white), all))
+        };
+        let (g0, a0) = half(false)?;
+        let (g1, a1) = half(true)?;
+        held_out::prefer_mean(g, all, [&g0, &g1], [&a0, &a1], white);
+        Ok(())
     }
 
     /// statmc of the accepted samples, made once, and the seconds from the

@@ -57,14 +57,20 @@ pub fn guide(denoised: &Image, accepted: &Interval, all: &Interval, white: f64) 
             }
         }
         let (x, se) = (all.centre.data[px], all.own_se.data[px]);
-        let over = |a: &[f64; 3]| a.iter().all(|&c| c >= white);
-        if all.count[px] >= 2 && over(v) && over(&x) {
+        if shown_white(all, px, v, white) {
             *v = std::array::from_fn(|c| {
                 v[c].clamp(x[c] - SATURATED_Z * se[c], x[c] + SATURATED_Z * se[c])
             });
         }
     });
     out
+}
+
+/// Whether the display shows both `v` and pixel `px`'s mean as white on
+/// every channel, the mean made from two samples or more.
+pub(crate) fn shown_white(all: &Interval, px: usize, v: &[f64; 3], white: f64) -> bool {
+    let over = |a: &[f64; 3]| a.iter().all(|&c| c >= white);
+    all.count[px] >= 2 && over(v) && over(&all.centre.data[px])
 }
 
 #[cfg(test)]

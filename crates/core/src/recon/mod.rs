@@ -7,6 +7,7 @@ pub mod confidence;
 pub mod energy;
 pub mod groups;
 pub mod guided;
+pub mod held_out;
 pub mod median;
 pub mod mon;
 pub mod per_pixel;

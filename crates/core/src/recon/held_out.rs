@@ -1,0 +1,202 @@
+//! Held-out halves: which of two estimates of a white pixel is nearer the
+//! truth, judged on samples the estimate was not made from
+//! (docs/filter.md F10, "Saturated pixels").
+//!
+//! Each pixel's valid samples are split in two halves by their ordinal in
+//! file order (even, odd). An image G_k made from half k alone is
+//! independent of the other half's mean x̄_j, so
+//! E[(G_k − x̄_j)²] = MSE(G_k) + Var(x̄_j): subtracting x̄_j's variance
+//! (its own s²/n) leaves an unbiased estimate of G_k's squared error, and
+//! Var(x̄_k) is x̄_k's own. Their difference, averaged over both ways round
+//! and summed over a window, says whether the mean or the denoised image is
+//! nearer the truth there (the dual-buffer error estimates of adaptive
+//! rendering; Rousselle, Knaus and Zwicker, "Adaptive Rendering with
+//! Non-Local Means Filtering", SIGGRAPH Asia 2012). The estimate compares
+//! half-sample images; the full mean's variance is half its half's, and a
+//! denoiser's bias is not, so it leans towards the denoiser.
+//!
+//! Only pixels the display shows as white on every channel, in both G and
+//! x̄, are decided: there the two look the same and the linear error is the
+//! only one, which the estimate measures. Elsewhere a choice of the noisy
+//! mean would be seen.
+
+use super::Image;
+use super::confidence::Interval;
+use super::guided;
+use crate::dump::{Header, Record, Validity};
+use crate::par::prelude::*;
+
+/// The window's half-width in pixels: 17 × 17, statmc's.
+pub const RADIUS: usize = 8;
+
+/// Per record, whether it is a valid sample of the second half: the odd
+/// ordinals among its pixel's valid samples, in file order. One bit a
+/// record.
+pub fn split(records: &[Record], h: &Header) -> Vec<u64> {
+    let mut seen = vec![false; h.pixels() * h.frames as usize];
+    let mut odd = vec![0u64; records.len().div_ceil(64)];
+    for (i, r) in records.iter().enumerate() {
+        if r.validity(h) != Validity::Valid {
+            continue;
+        }
+        let s = &mut seen[r.pixel_index(h)];
+        if *s {
+            odd[i / 64] |= 1 << (i % 64);
+        }
+        *s = !*s;
+    }
+    odd
+}
+
+/// Whether record `i` is in half 1 of `split`'s.
+#[inline]
+pub fn in_second(odd: &[u64], i: usize) -> bool {
+    odd[i / 64] >> (i % 64) & 1 == 1
+}
+
+/// `g` (made from all the samples, with `all` their intervals) with every
+/// white pixel set to its mean x̄ where the window's held-out estimate says
+/// x̄'s squared error is the smaller. `halves[k]` is the same image made
+/// from half k's samples alone, `all_halves[k]` half k's intervals;
+/// `white` the linear value the display shows as white.
+pub fn prefer_mean(
+    g: &mut Image,
+    all: &Interval,
+    halves: [&Image; 2],
+    all_halves: [&Interval; 2],
+    white: f64,
+) {
+    let (w, ht) = (g.width, g.height);
+    // Per pixel: MSE(G) − MSE(x̄), estimated from the halves (None where
+    // the pixel is not decided).
+    let delta: Vec<Option<f64>> = (0..g.data.len())
+        .into_par_iter()
+        .map(|px| {
+            let decided = guided::shown_white(all, px, &g.data[px], white)
+                && all_halves.iter().all(|a| a.count[px] >= 2);
+            if !decided {
+                return None;
+            }
+            let [a, b] = all_halves.map(|a| (a.centre.data[px], a.own_se.data[px]));
+            let [ga, gb] = halves.map(|g| g.data[px]);
+            (0..3)
+                .map(|c| {
+                    let (va, vb) = (a.1[c] * a.1[c], b.1[c] * b.1[c]);
+                    let held = ((ga[c] - b.0[c]).powi(2) + (gb[c] - a.0[c]).powi(2)) / 2.0;
+                    held - va - vb
+                })
+                .sum::<f64>()
+                .into()
+        })
+        .collect();
+    let flat: Vec<f64> = delta.iter().map(|d| d.unwrap_or(0.0)).collect();
+    let sums = window_sums(&flat, w, ht, RADIUS);
+    g.data.par_iter_mut().enumerate().for_each(|(px, v)| {
+        if delta[px].is_some() && sums[px] > 0.0 {
+            *v = all.centre.data[px];
+        }
+    });
+}
+
+/// Per pixel the sum of `v` over the (2r + 1)² window around it, within
+/// its frame; rows first, then columns, each in a fixed order.
+fn window_sums(v: &[f64], w: usize, h: usize, r: usize) -> Vec<f64> {
+    let sum = |get: &dyn Fn(usize) -> f64, i: usize, len: usize| -> f64 {
+        (i.saturating_sub(r)..(i + r + 1).min(len)).map(get).sum()
+    };
+    let rows: Vec<f64> = (0..v.len())
+        .into_par_iter()
+        .map(|px| {
+            let (row, x) = (px - px % w, px % w);
+            sum(&|q| v[row + q], x, w)
+        })
+        .collect();
+    (0..v.len())
+        .into_par_iter()
+        .map(|px| {
+            let frame = px / (w * h) * w * h;
+            let (y, x) = ((px - frame) / w, px % w);
+            sum(&|q| rows[frame + q * w + x], y, h)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::recon::test_header as header;
+
+    /// The halves alternate within each pixel, in file order, and skip
+    /// what is not a valid sample.
+    #[test]
+    fn split_alternates_within_each_pixel() {
+        let h = header(2, 1);
+        let at = |x: f32| Record::new(x, 0.5, 0.0, [1.0; 3]);
+        let records = [
+            at(0.5),
+            at(1.5),
+            at(0.5),
+            Record::new(f32::NAN, 0.5, 0.0, [1.0; 3]),
+            at(1.5),
+            at(0.5),
+            at(1.5),
+        ];
+        let odd = split(&records, &h);
+        let second: Vec<bool> = (0..records.len()).map(|i| in_second(&odd, i)).collect();
+        assert_eq!(second, [false, false, true, false, true, false, false]);
+    }
+
+    fn one(v: f64) -> Image {
+        Image {
+            width: 1,
+            height: 1,
+            frames: 1,
+            data: vec![[v; 3]],
+        }
+    }
+
+    fn interval(mean: f64, se: f64, n: u32) -> Interval {
+        Interval {
+            centre: one(mean),
+            half_width: one(3.0 * se),
+            count: vec![n],
+            own_se: one(se),
+            z: 3.0,
+        }
+    }
+
+    /// A white pixel takes its mean where the halves' denoised images lie
+    /// farther from the other half's mean than that mean's noise explains
+    /// (a neighbour's energy spread into it), and keeps the denoiser's where
+    /// the two half means scatter about it (the mean is the noisy one).
+    /// Nothing below white, and nothing with a half of fewer than two
+    /// samples, is decided.
+    #[test]
+    fn white_pixels_take_the_estimate_the_other_half_prefers() {
+        let decide = |g: f64, halves: [(f64, f64); 2], g_halves: f64, white: f64, n: u32| {
+            let all = interval(10.0, 1.0, 2 * n);
+            let a = halves.map(|(m, se)| interval(m, se, n));
+            let gh = one(g_halves);
+            let mut out = one(g);
+            prefer_mean(&mut out, &all, [&gh, &gh], [&a[0], &a[1]], white);
+            out.data[0][0]
+        };
+        // ((20 − 11)² + (20 − 9)²)/2 − 1 − 1 = 99 > 0: the mean.
+        assert_eq!(decide(20.0, [(9.0, 1.0), (11.0, 1.0)], 20.0, 1.0, 8), 10.0);
+        // (25 + 25)/2 − 25 − 25 < 0: the denoiser's.
+        assert_eq!(decide(11.0, [(5.0, 5.0), (15.0, 5.0)], 10.0, 1.0, 8), 11.0);
+        // Not white, or a half of one sample: as it was.
+        assert_eq!(decide(20.0, [(9.0, 1.0), (11.0, 1.0)], 20.0, 15.0, 8), 20.0);
+        assert_eq!(decide(20.0, [(9.0, 1.0), (11.0, 1.0)], 20.0, 1.0, 1), 20.0);
+    }
+
+    #[test]
+    fn window_sums_stay_in_their_frame() {
+        // Two 3 × 2 frames of ones: each window counts its frame's pixels.
+        let s = window_sums(&[1.0; 12], 3, 2, 1);
+        assert_eq!(&s[..6], &[4.0, 6.0, 4.0, 4.0, 6.0, 4.0]);
+        assert_eq!(&s[..6], &s[6..]);
+        let far = window_sums(&[1.0; 12], 3, 2, 8);
+        assert!(far.iter().all(|&x| x == 6.0));
+    }
+}
