@@ -314,7 +314,12 @@ impl<'s, 'a> Estimators<'s, 'a> {
                 // sees (docs/filter.md F10).
                 let (all, _) = self.shared.interval();
                 let ((), t) = timed(|| all.hold_blocks(&mut out, confidence::Z));
-                (Arc::new(out), s + t)
+                let (_, t2) = timed(|| {
+                    self.held_out(&mut out, |half| {
+                        Ok::<_, std::convert::Infallible>(self.guided_of_half(half))
+                    })
+                });
+                (Arc::new(out), s + t + t2)
             }
             Method::Oidn => {
                 let (denoised, s) = self.oidn_mean()?;
@@ -327,11 +332,12 @@ impl<'s, 'a> Estimators<'s, 'a> {
             Method::GuidedOidn => {
                 let (denoised, s) = self.oidn_mean()?;
                 let (mut out, s) = self.guided(denoised, *s);
-                let occupancy = &rec.occupancy;
-                let oidn = |img: &Image| {
-                    imagespace::oidn::denoise(img, occupancy, self.aux).map(|d| d.image)
+                let white = 1.0 / c.exposure;
+                let guided_oidn = |half: &Half| {
+                    let d = imagespace::oidn::denoise(&half.all.centre, &rec.occupancy, self.aux)?;
+                    Ok(guided::guide(&d.image, &half.accepted, &half.all, white))
                 };
-                let (decided, t) = timed(|| self.held_out(&mut out, oidn));
+                let (decided, t) = timed(|| self.held_out(&mut out, guided_oidn));
                 decided?;
                 (Arc::new(out), s + t)
             }
@@ -359,14 +365,13 @@ impl<'s, 'a> Estimators<'s, 'a> {
         )
     }
 
-    /// `g`, the guided image of the denoiser `denoise`, with its white
-    /// pixels decided by the held-out halves ([`held_out`]): each half's
-    /// mean denoised and guided by that half's samples alone. Nothing is
-    /// made where no pixel is white.
+    /// `g`, a guided image, with its white pixels decided by the held-out
+    /// halves ([`held_out`]): `make` makes the same image from one half's
+    /// samples alone. Nothing is made where no pixel is white.
     fn held_out<E>(
         &self,
         g: &mut Image,
-        denoise: impl Fn(&Image) -> Result<Image, E>,
+        make: impl Fn(&Half) -> Result<Image, E>,
     ) -> Result<(), E> {
         let (all, _) = self.shared.interval();
         let white = 1.0 / self.config.exposure;
@@ -383,17 +388,45 @@ impl<'s, 'a> Estimators<'s, 'a> {
         let odd = held_out::split(records, h);
         let half = |second: bool| -> Result<(Image, Interval), E> {
             let of_half = |i: usize| held_out::in_second(&odd, i) == second;
-            let all = confidence::interval_of(records, h, confidence::Z, of_half);
-            let accepted = confidence::interval_of(records, h, self.config.guide_z, |i| {
-                of_half(i) && Decision::accepted(decisions[i])
-            });
-            let d = denoise(&all.centre)?;
-            Ok((guided::guide(&d, &accepted, &all, white), all))
+            let accepted = |i: usize| of_half(i) && Decision::accepted(decisions[i]);
+            let half = Half {
+                all: confidence::interval_of(records, h, confidence::Z, of_half),
+                accepted: confidence::interval_of(records, h, self.config.guide_z, accepted),
+                keep: &accepted,
+            };
+            Ok((make(&half)?, half.all))
         };
         let (g0, a0) = half(false)?;
         let (g1, a1) = half(true)?;
         held_out::prefer_mean(g, all, [&g0, &g1], [&a0, &a1], white);
         Ok(())
+    }
+
+    /// `guided`'s image made from one half's samples alone: statmc of its
+    /// accepted samples, the energy it removed spread back, guided by its
+    /// intervals and held by blocks. Its filtered image is the mean of its
+    /// accepted samples (the half's mean where it has none: no median
+    /// fallback).
+    fn guided_of_half(&self, half: &Half) -> Image {
+        let (records, h) = (self.shared.records, self.shared.header);
+        let denoised = statmc::denoise(records, h, half.keep);
+        let mut filtered = half.accepted.centre.clone();
+        for (px, f) in filtered.data.iter_mut().enumerate() {
+            if half.accepted.count[px] == 0 {
+                *f = half.all.centre.data[px];
+            }
+        }
+        let removed = energy::removed(&half.all.centre, &filtered);
+        let with_energy = energy::energy_aware(
+            &denoised,
+            &removed,
+            &half.all.count,
+            self.config.energy_sigma,
+        );
+        let white = 1.0 / self.config.exposure;
+        let mut g = guided::guide(&with_energy, &half.accepted, &half.all, white);
+        half.all.hold_blocks(&mut g, confidence::Z);
+        g
     }
 
     /// statmc of the accepted samples, made once, and the seconds from the
@@ -533,6 +566,16 @@ impl<'s, 'a> Estimators<'s, 'a> {
         });
         (m, group_s + s)
     }
+}
+
+/// One held-out half of every pixel's samples ([`held_out::split`]).
+struct Half<'a> {
+    /// The intervals of its valid samples.
+    all: Interval,
+    /// The intervals of its accepted samples.
+    accepted: Interval,
+    /// Whether record i is an accepted sample of this half.
+    keep: &'a (dyn Fn(usize) -> bool + Sync),
 }
 
 fn timed<T>(f: impl FnOnce() -> T) -> (T, f64) {
