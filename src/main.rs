@@ -96,6 +96,10 @@ struct ConfigArgs {
     /// guided: z of the accepted samples' confidence interval.
     #[arg(long, default_value_t = D.guide_z)]
     guide_z: f64,
+    /// guided, guided_oidn: decide the white pixels by held-out halves of
+    /// the samples (`false`: faster, each image made once; docs/filter.md F10).
+    #[arg(long, default_value_t = D.held_out, action = clap::ArgAction::Set)]
+    held_out: bool,
     /// Exposure of the PNG previews and the display metrics.
     #[arg(long, default_value_t = D.exposure)]
     exposure: f64,
@@ -140,6 +144,7 @@ impl From<ConfigArgs> for FilterConfig {
             energy_sigma: a.energy_sigma,
             clamp: a.clamp,
             guide_z: a.guide_z,
+            held_out: a.held_out,
             exposure: a.exposure,
             denoise: a.denoise,
             color_space: a.color_space,

@@ -104,6 +104,9 @@ pub struct FilterConfig {
     pub clamp: f64,
     /// guided: z of the accepted samples' confidence interval.
     pub guide_z: f64,
+    /// guided, guided_oidn: decide white pixels by held-out halves of the
+    /// samples (docs/filter.md F10), which makes each image twice more.
+    pub held_out: bool,
     /// Exposure of the display transform (RMS_display, previews).
     pub exposure: f64,
     /// Also denoise every selected method's image (`METHOD+oidn`).
@@ -144,6 +147,7 @@ impl FilterConfig {
         energy_sigma: 8.0,
         clamp: 10.0,
         guide_z: crate::recon::guided::Z,
+        held_out: true,
         exposure: 1.0,
         denoise: Denoise::None,
         color_space: JointSpace::DEFAULT.color,

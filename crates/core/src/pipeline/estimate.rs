@@ -23,7 +23,7 @@ use crate::imagespace::{self, oidn::OidnError};
 use crate::method::Method;
 pub use crate::method::Piece;
 use crate::par::prelude::*;
-use crate::recon::confidence::{self, Interval};
+use crate::recon::confidence::{self, Interval, Moments};
 use crate::recon::groups::PixelGroups;
 use crate::recon::mon::{self, MonImages};
 use crate::recon::robust::{self, RobustImages};
@@ -315,8 +315,8 @@ impl<'s, 'a> Estimators<'s, 'a> {
                 let (all, _) = self.shared.interval();
                 let ((), t) = timed(|| all.hold_blocks(&mut out, confidence::Z));
                 let (_, t2) = timed(|| {
-                    self.held_out(&mut out, |half| {
-                        Ok::<_, std::convert::Infallible>(self.guided_of_half(half))
+                    self.held_out(&mut out, |second| {
+                        Ok::<_, std::convert::Infallible>(self.guided_of_half(second))
                     })
                 });
                 (Arc::new(out), s + t + t2)
@@ -332,12 +332,8 @@ impl<'s, 'a> Estimators<'s, 'a> {
             Method::GuidedOidn => {
                 let (denoised, s) = self.oidn_mean()?;
                 let (mut out, s) = self.guided(denoised, *s);
-                let white = 1.0 / c.exposure;
-                let guided_oidn = |half: &Half| {
-                    let d = imagespace::oidn::denoise(&half.all.centre, &rec.occupancy, self.aux)?;
-                    Ok(guided::guide(&d.image, &half.accepted, &half.all, white))
-                };
-                let (decided, t) = timed(|| self.held_out(&mut out, guided_oidn));
+                let half = |second| self.guided_oidn_of_half(second);
+                let (decided, t) = timed(|| self.held_out(&mut out, half));
                 decided?;
                 (Arc::new(out), s + t)
             }
@@ -366,13 +362,17 @@ impl<'s, 'a> Estimators<'s, 'a> {
     }
 
     /// `g`, a guided image, with its white pixels decided by the held-out
-    /// halves ([`held_out`]): `make` makes the same image from one half's
-    /// samples alone. Nothing is made where no pixel is white.
+    /// halves ([`held_out`]): `make(second)` makes the same image from one
+    /// half's samples alone, with that half's intervals. Nothing is made
+    /// where no pixel is white.
     fn held_out<E>(
         &self,
         g: &mut Image,
-        make: impl Fn(&Half) -> Result<Image, E>,
+        make: impl Fn(bool) -> Result<(Image, Interval), E>,
     ) -> Result<(), E> {
+        if !self.config.held_out {
+            return Ok(());
+        }
         let (all, _) = self.shared.interval();
         let white = 1.0 / self.config.exposure;
         let any_white = (0..g.data.len())
@@ -381,52 +381,74 @@ impl<'s, 'a> Estimators<'s, 'a> {
         if !any_white {
             return Ok(());
         }
-        let decisions = self
-            .decisions
-            .expect("an image that needs the decisions is made with them");
-        let (records, h) = (self.shared.records, self.shared.header);
-        let odd = held_out::split(records, h);
-        let half = |second: bool| -> Result<(Image, Interval), E> {
-            let of_half = |i: usize| held_out::in_second(&odd, i) == second;
-            let accepted = |i: usize| of_half(i) && Decision::accepted(decisions[i]);
-            let half = Half {
-                all: confidence::interval_of(records, h, confidence::Z, of_half),
-                accepted: confidence::interval_of(records, h, self.config.guide_z, accepted),
-                keep: &accepted,
-            };
-            Ok((make(&half)?, half.all))
-        };
-        let (g0, a0) = half(false)?;
-        let (g1, a1) = half(true)?;
+        let (g0, a0) = make(false)?;
+        let (g1, a1) = make(true)?;
         held_out::prefer_mean(g, all, [&g0, &g1], [&a0, &a1], white);
         Ok(())
     }
 
-    /// `guided`'s image made from one half's samples alone: statmc of its
-    /// accepted samples, the energy it removed spread back, guided by its
-    /// intervals and held by blocks. Its filtered image is the mean of its
-    /// accepted samples (the half's mean where it has none: no median
-    /// fallback).
-    fn guided_of_half(&self, half: &Half) -> Image {
+    /// One half's folds of its samples and of its accepted ones
+    /// ([`held_out::fold_half`]).
+    fn fold_half<S: Default + Clone + Send>(
+        &self,
+        second: bool,
+        add: impl Fn(&mut S, [f64; 3]) + Sync,
+    ) -> Vec<held_out::HalfFold<S>> {
+        let decisions = self
+            .decisions
+            .expect("an image that needs the decisions is made with them");
         let (records, h) = (self.shared.records, self.shared.header);
-        let denoised = statmc::denoise(records, h, half.keep);
-        let mut filtered = half.accepted.centre.clone();
+        held_out::fold_half(
+            records,
+            h,
+            second,
+            |i| Decision::accepted(decisions[i]),
+            add,
+        )
+    }
+
+    /// `guided_oidn`'s image made from one half's samples alone, and the
+    /// half's intervals.
+    fn guided_oidn_of_half(&self, second: bool) -> Result<(Image, Interval), OidnError> {
+        let h = self.shared.header;
+        let folds = self.fold_half(second, Moments::add);
+        let all = confidence::from_moments_of(&folds, |f| &f.all, h, confidence::Z);
+        let accepted = confidence::from_moments_of(&folds, |f| &f.accepted, h, self.config.guide_z);
+        drop(folds);
+        let occupancy = &self.core.reconstruction.occupancy;
+        let d = imagespace::oidn::denoise(&all.centre, occupancy, self.aux)?;
+        let white = 1.0 / self.config.exposure;
+        Ok((guided::guide(&d.image, &accepted, &all, white), all))
+    }
+
+    /// `guided`'s image made from one half's samples alone — statmc of its
+    /// accepted samples, the energy it removed spread back, guided by its
+    /// intervals and held by blocks — and the half's intervals. Its
+    /// filtered value is the mean of its accepted samples (the half's mean
+    /// where it has none: no median fallback).
+    fn guided_of_half(&self, second: bool) -> (Image, Interval) {
+        let h = self.shared.header;
+        let folds = self.fold_half(second, statmc::stats_adder());
+        let all = confidence::from_moments_of(&folds, |f| &f.all, h, confidence::Z);
+        let accepted =
+            confidence::from_moments_of(&folds, |f| f.accepted.as_ref(), h, self.config.guide_z);
+        let window = statmc::Window::new(&folds, h);
+        drop(folds);
+        let denoised = window.denoise(h);
+        drop(window);
+        let mut filtered = accepted.centre.clone();
         for (px, f) in filtered.data.iter_mut().enumerate() {
-            if half.accepted.count[px] == 0 {
-                *f = half.all.centre.data[px];
+            if accepted.count[px] == 0 {
+                *f = all.centre.data[px];
             }
         }
-        let removed = energy::removed(&half.all.centre, &filtered);
-        let with_energy = energy::energy_aware(
-            &denoised,
-            &removed,
-            &half.all.count,
-            self.config.energy_sigma,
-        );
+        let removed = energy::removed(&all.centre, &filtered);
+        let with_energy =
+            energy::energy_aware(&denoised, &removed, &all.count, self.config.energy_sigma);
         let white = 1.0 / self.config.exposure;
-        let mut g = guided::guide(&with_energy, &half.accepted, &half.all, white);
-        half.all.hold_blocks(&mut g, confidence::Z);
-        g
+        let mut g = guided::guide(&with_energy, &accepted, &all, white);
+        all.hold_blocks(&mut g, confidence::Z);
+        (g, all)
     }
 
     /// statmc of the accepted samples, made once, and the seconds from the
@@ -566,16 +588,6 @@ impl<'s, 'a> Estimators<'s, 'a> {
         });
         (m, group_s + s)
     }
-}
-
-/// One held-out half of every pixel's samples ([`held_out::split`]).
-struct Half<'a> {
-    /// The intervals of its valid samples.
-    all: Interval,
-    /// The intervals of its accepted samples.
-    accepted: Interval,
-    /// Whether record i is an accepted sample of this half.
-    keep: &'a (dyn Fn(usize) -> bool + Sync),
 }
 
 fn timed<T>(f: impl FnOnce() -> T) -> (T, f64) {

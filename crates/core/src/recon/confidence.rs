@@ -201,11 +201,21 @@ pub fn interval_of(
 
 /// The intervals from every pixel's moments of its samples.
 pub(crate) fn from_moments<M: AsRef<Moments>>(moments: &[M], h: &Header, z: f64) -> Interval {
+    from_moments_of(moments, AsRef::as_ref, h, z)
+}
+
+/// [`from_moments`] of the moments `get` reads from each pixel's `M`.
+pub(crate) fn from_moments_of<M>(
+    moments: &[M],
+    get: impl Fn(&M) -> &Moments,
+    h: &Header,
+    z: f64,
+) -> Interval {
     let (w, ht) = (h.width as usize, h.height as usize);
-    let moments: Vec<&Moments> = moments.iter().map(AsRef::as_ref).collect();
+    let moments: Vec<&Moments> = moments.iter().map(get).collect();
     // The standard error of each pixel's mean from its own samples alone.
     let own_se: Vec<[f64; 3]> = moments
-        .iter()
+        .par_iter()
         .map(|m| match m.variance() {
             Some(v) => v.map(|v| (v / m.n as f64).sqrt()),
             None => [0.0; 3],
@@ -213,42 +223,48 @@ pub(crate) fn from_moments<M: AsRef<Moments>>(moments: &[M], h: &Header, z: f64)
         .collect();
     let mut centre = Image::for_header(h);
     let mut half_width = Image::for_header(h);
-    for (px, m) in moments.iter().enumerate() {
-        if m.n == 0 {
-            continue;
-        }
-        let (frame, i) = (px / (w * ht), px % (w * ht));
-        let (x, y) = (i % w, i / w);
-        let mut pooled = [0.0; 3];
-        let mut count = [0.0; 3];
-        for ny in y.saturating_sub(1)..(y + 2).min(ht) {
-            for nx in x.saturating_sub(1)..(x + 2).min(w) {
-                let q = frame * w * ht + ny * w + nx;
-                let Some(v) = moments[q].variance() else {
-                    continue;
-                };
-                for c in 0..3 {
-                    let gap = (moments[q].mean[c] - m.mean[c]).abs();
-                    if gap <= z * (own_se[q][c] + own_se[px][c]) {
-                        pooled[c] += v[c];
-                        count[c] += 1.0;
+    centre
+        .data
+        .par_iter_mut()
+        .zip(half_width.data.par_iter_mut())
+        .enumerate()
+        .for_each(|(px, (centre, half_width))| {
+            let m = moments[px];
+            if m.n == 0 {
+                return;
+            }
+            let (frame, i) = (px / (w * ht), px % (w * ht));
+            let (x, y) = (i % w, i / w);
+            let mut pooled = [0.0; 3];
+            let mut count = [0.0; 3];
+            for ny in y.saturating_sub(1)..(y + 2).min(ht) {
+                for nx in x.saturating_sub(1)..(x + 2).min(w) {
+                    let q = frame * w * ht + ny * w + nx;
+                    let Some(v) = moments[q].variance() else {
+                        continue;
+                    };
+                    for c in 0..3 {
+                        let gap = (moments[q].mean[c] - m.mean[c]).abs();
+                        if gap <= z * (own_se[q][c] + own_se[px][c]) {
+                            pooled[c] += v[c];
+                            count[c] += 1.0;
+                        }
                     }
                 }
             }
-        }
-        let own = m.variance();
-        centre.data[px] = m.mean;
-        half_width.data[px] = std::array::from_fn(|c| {
-            let s2 = match (own, count[c] > 0.0) {
-                (Some(own), true) => own[c].max(pooled[c] / count[c]),
-                (None, true) => pooled[c] / count[c],
-                (Some(own), false) => own[c],
-                // Nothing says how wide: no bound.
-                (None, false) => f64::INFINITY,
-            };
-            z * (s2 / m.n as f64).sqrt()
+            let own = m.variance();
+            *centre = m.mean;
+            *half_width = std::array::from_fn(|c| {
+                let s2 = match (own, count[c] > 0.0) {
+                    (Some(own), true) => own[c].max(pooled[c] / count[c]),
+                    (None, true) => pooled[c] / count[c],
+                    (Some(own), false) => own[c],
+                    // Nothing says how wide: no bound.
+                    (None, false) => f64::INFINITY,
+                };
+                z * (s2 / m.n as f64).sqrt()
+            });
         });
-    }
     let count = moments.iter().map(|m| m.n).collect();
     Interval {
         centre,

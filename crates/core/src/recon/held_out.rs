@@ -20,38 +20,53 @@
 //! only one, which the estimate measures. Elsewhere a choice of the noisy
 //! mean would be seen.
 
-use super::Image;
-use super::confidence::Interval;
-use super::guided;
-use crate::dump::{Header, Record, Validity};
+use super::confidence::{Interval, Moments};
+use super::{Image, guided, per_pixel};
+use crate::dump::{Header, Record};
 use crate::par::prelude::*;
 
 /// The window's half-width in pixels: 17 × 17, statmc's.
 pub const RADIUS: usize = 8;
 
-/// Per record, whether it is a valid sample of the second half: the odd
-/// ordinals among its pixel's valid samples, in file order. One bit a
-/// record.
-pub fn split(records: &[Record], h: &Header) -> Vec<u64> {
-    let mut seen = vec![false; h.pixels() * h.frames as usize];
-    let mut odd = vec![0u64; records.len().div_ceil(64)];
-    for (i, r) in records.iter().enumerate() {
-        if r.validity(h) != Validity::Valid {
-            continue;
-        }
-        let s = &mut seen[r.pixel_index(h)];
-        if *s {
-            odd[i / 64] |= 1 << (i % 64);
-        }
-        *s = !*s;
-    }
-    odd
+/// Per pixel, one half's moments of its valid samples and `S` of its
+/// accepted ones.
+#[derive(Clone, Default)]
+pub(crate) struct HalfFold<S> {
+    /// The pixel's valid samples seen so far, of both halves.
+    seen: u32,
+    pub(crate) all: Moments,
+    pub(crate) accepted: S,
 }
 
-/// Whether record `i` is in half 1 of `split`'s.
-#[inline]
-pub fn in_second(odd: &[u64], i: usize) -> bool {
-    odd[i / 64] >> (i % 64) & 1 == 1
+impl<S> AsRef<S> for HalfFold<S> {
+    fn as_ref(&self) -> &S {
+        &self.accepted
+    }
+}
+
+/// Every pixel's [`HalfFold`] of its first half (`second` false: the even
+/// ordinals among its valid samples in file order) or its second (the
+/// odd ones), in one pass; `accepted(i)` says whether record i was
+/// accepted, `add` is `S`'s update.
+pub(crate) fn fold_half<S: Default + Clone + Send>(
+    records: &[Record],
+    h: &Header,
+    second: bool,
+    accepted: impl Fn(usize) -> bool + Sync,
+    add: impl Fn(&mut S, [f64; 3]) + Sync,
+) -> Vec<HalfFold<S>> {
+    let jobs = crate::par::current_num_threads();
+    let item = |i: usize, r: &Record| Some(([r.r as f64, r.g as f64, r.b as f64], accepted(i)));
+    per_pixel::fold_colours(records, h, jobs, item, |f: &mut HalfFold<S>, (x, acc)| {
+        let mine = (f.seen % 2 == 1) == second;
+        f.seen += 1;
+        if mine {
+            f.all.add(x);
+            if acc {
+                add(&mut f.accepted, x);
+            }
+        }
+    })
 }
 
 /// `g` (made from all the samples, with `all` their intervals) with every
@@ -127,23 +142,33 @@ mod tests {
     use crate::recon::test_header as header;
 
     /// The halves alternate within each pixel, in file order, and skip
-    /// what is not a valid sample.
+    /// what is not a valid sample; the accepted samples are those of the
+    /// half.
     #[test]
-    fn split_alternates_within_each_pixel() {
+    fn halves_alternate_within_each_pixel() {
         let h = header(2, 1);
-        let at = |x: f32| Record::new(x, 0.5, 0.0, [1.0; 3]);
+        let at = |x: f32, v: f32| Record::new(x, 0.5, 0.0, [v; 3]);
         let records = [
-            at(0.5),
-            at(1.5),
-            at(0.5),
+            at(0.5, 1.0),
+            at(1.5, 10.0),
+            at(0.5, 2.0),
             Record::new(f32::NAN, 0.5, 0.0, [1.0; 3]),
-            at(1.5),
-            at(0.5),
-            at(1.5),
+            at(1.5, 20.0),
+            at(0.5, 4.0),
+            at(1.5, 40.0),
+            at(0.5, 8.0),
         ];
-        let odd = split(&records, &h);
-        let second: Vec<bool> = (0..records.len()).map(|i| in_second(&odd, i)).collect();
-        assert_eq!(second, [false, false, true, false, true, false, false]);
+        let push = |v: &mut Vec<f64>, x: [f64; 3]| v.push(x[0]);
+        let all_but_the_last = |i: usize| i != 7;
+        let [first, second] =
+            [false, true].map(|k| fold_half(&records, &h, k, all_but_the_last, push));
+        assert_eq!((first[0].all.n, first[0].all.mean[0]), (2, 2.5));
+        assert_eq!((second[0].all.n, second[0].all.mean[0]), (2, 5.0));
+        assert_eq!((first[1].all.n, second[1].all.n), (2, 1));
+        assert_eq!(first[0].accepted, [1.0, 4.0]);
+        assert_eq!(second[0].accepted, [2.0]);
+        assert_eq!(first[1].accepted, [10.0, 40.0]);
+        assert_eq!(second[1].accepted, [20.0]);
     }
 
     fn one(v: f64) -> Image {

@@ -32,14 +32,15 @@ pub fn fold<A: Default + Clone + Send>(
     fold_colours(records, h, jobs, colour, add)
 }
 
-/// [`fold`] of the colours `colour(i, r)` gives the valid samples it
-/// picks (record i, called for valid records only).
-pub fn fold_colours<A: Default + Clone + Send>(
+/// [`fold`] of the items `colour(i, r)` gives the valid samples it picks
+/// (record i, called for valid records only): their colours, or anything
+/// `add` takes.
+pub fn fold_colours<A: Default + Clone + Send, T>(
     records: &[Record],
     h: &Header,
     jobs: usize,
-    colour: impl Fn(usize, &Record) -> Option<[f64; 3]> + Sync,
-    add: impl Fn(&mut A, [f64; 3]) + Sync,
+    colour: impl Fn(usize, &Record) -> Option<T> + Sync,
+    add: impl Fn(&mut A, T) + Sync,
 ) -> Vec<A> {
     let tile = (TILE_BYTES / size_of::<A>().max(1)).max(1);
     if let Some(acc) = in_place(records, h, jobs > 1, tile, &colour, &add) {
@@ -82,13 +83,13 @@ pub fn fold_colours<A: Default + Clone + Send>(
 /// the dump declares neither order, or when a valid record lies outside
 /// the pixel its place says (then the order does not hold, and [`fold`]
 /// scans).
-fn in_place<A: Default + Clone + Send>(
+fn in_place<A: Default + Clone + Send, T>(
     records: &[Record],
     h: &Header,
     parallel: bool,
     tile: usize,
-    colour: &(impl Fn(usize, &Record) -> Option<[f64; 3]> + Sync),
-    add: &(impl Fn(&mut A, [f64; 3]) + Sync),
+    colour: &(impl Fn(usize, &Record) -> Option<T> + Sync),
+    add: &(impl Fn(&mut A, T) + Sync),
 ) -> Option<Vec<A>> {
     let pass_major = match h.order {
         Order::PassMajor => true,

@@ -62,6 +62,12 @@ pub(crate) struct Stats {
     y_m2: [f64; 3],
 }
 
+impl AsRef<Stats> for Stats {
+    fn as_ref(&self) -> &Stats {
+        self
+    }
+}
+
 impl AsRef<Moments> for Stats {
     fn as_ref(&self) -> &Moments {
         &self.x
@@ -107,7 +113,8 @@ struct Fields {
 impl Fields {
     /// What the test reads of each pixel, made once: s²/n would otherwise
     /// be divided out again for each of the (2R + 1)² pixels around it.
-    fn new(stats: &[Stats], w: usize, ht: usize) -> Fields {
+    fn new<S: AsRef<Stats> + Sync>(stats: &[S], w: usize, ht: usize) -> Fields {
+        let stats: Vec<&Stats> = stats.iter().map(AsRef::as_ref).collect();
         let channel = |f: &(dyn Fn(&Stats) -> [f64; 3] + Sync)| -> [Vec<f64>; 3] {
             std::array::from_fn(|c| stats.par_iter().map(|s| f(s)[c]).collect())
         };
@@ -278,10 +285,10 @@ pub(crate) struct Window {
 }
 
 impl Window {
-    pub(crate) fn new(stats: &[Stats], h: &Header) -> Window {
+    pub(crate) fn new<S: AsRef<Stats> + Sync>(stats: &[S], h: &Header) -> Window {
         let (w, ht) = (h.width as usize, h.height as usize);
         Window {
-            kernel: Kernel::new(stats.iter().map(|s| s.x.n).max().unwrap_or(0)),
+            kernel: Kernel::new(stats.iter().map(|s| s.as_ref().x.n).max().unwrap_or(0)),
             fields: Fields::new(stats, w, ht),
         }
     }
@@ -308,6 +315,16 @@ fn window(fields: &Fields, kernel: &Kernel, h: &Header) -> Image {
             }
         });
     img
+}
+
+/// [`Stats`]' update: in AVX2 where the CPU has it (the same bits).
+pub(crate) fn stats_adder() -> fn(&mut Stats, [f64; 3]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: only returned where the CPU has AVX2 (checked just above).
+        return |s, x| unsafe { avx2::add(s, x) };
+    }
+    Stats::add
 }
 
 /// Every pixel's statistics of the valid samples `keep(i)` picks, in
