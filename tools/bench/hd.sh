@@ -4,8 +4,9 @@
 # existing dump at DUMP is used as it is), then
 # ROUNDS (default 2) rounds of, in turn, the bare run (`--no-html --methods
 # mean`), the default images without the report (`--no-html`), the default
-# run (its images and the report) and every image (`--methods all`, the
-# comparison), 2 threads. Prints each run's wall seconds, report.json's phases
+# run (its images and the report), the default run without the held-out
+# halves (`--held-out false`: the recommended image made once) and every
+# image (`--methods all`, the comparison), 2 threads. Prints each run's wall seconds, report.json's phases
 # and peak anonymous memory apart from the mapped dump (tools/bench/peak_rss.sh),
 # then each median over the bare run's.
 #
@@ -20,9 +21,10 @@ mkdir -p "$(dirname "$dump")"
 [ -f "$dump" ] || $pd synth -o "$dump" --width 1920 --height 1080 --spp 64 --order pass >/dev/null
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-declare -A args=([bare]="--no-html --methods mean" [nohtml]="--no-html" [default]="" [all]="--methods all")
+declare -A args=([bare]="--no-html --methods mean" [nohtml]="--no-html" [default]=""
+    [once]="--held-out false" [all]="--methods all")
 for r in $(seq "$rounds"); do
-    for run in bare nohtml default all; do
+    for run in bare nohtml default once all; do
         start=$(date +%s.%N)
         # shellcheck disable=SC2086
         mem=$(bash tools/bench/peak_rss.sh $pd filter "$dump" -o "$tmp/$run" --threads 2 ${args[$run]})
