@@ -383,7 +383,8 @@ impl<'s, 'a> Estimators<'s, 'a> {
         }
         let (g0, a0) = make(false)?;
         let (g1, a1) = make(true)?;
-        held_out::prefer_mean(g, all, [&g0, &g1], [&a0, &a1], white);
+        let (accepted, _) = self.accepted_interval();
+        held_out::prefer_mean(g, all, &accepted.count, [&g0, &g1], [&a0, &a1], white);
         Ok(())
     }
 

@@ -77,6 +77,7 @@ pub(crate) fn fold_half<S: Default + Clone + Send>(
 pub fn prefer_mean(
     g: &mut Image,
     all: &Interval,
+    accepted: &[u32],
     halves: [&Image; 2],
     all_halves: [&Interval; 2],
     white: f64,
@@ -107,7 +108,8 @@ pub fn prefer_mean(
     let flat: Vec<f64> = delta.iter().map(|d| d.unwrap_or(0.0)).collect();
     let sums = window_sums(&flat, w, ht, RADIUS);
     g.data.par_iter_mut().enumerate().for_each(|(px, v)| {
-        if delta[px].is_some() && sums[px] > 0.0 {
+        let own = |d: f64| accepted[px] == all.count[px] || d > 0.0;
+        if delta[px].is_some_and(own) && sums[px] > 0.0 {
             *v = all.centre.data[px];
         }
     });
