@@ -299,27 +299,18 @@ impl<'s, 'a> Estimators<'s, 'a> {
             }
             Method::Guided => {
                 let (denoised, s) = self.statmc();
-                // The energy the filter removed, spread back as in
-                // filtered_energy.
-                let (with_energy, t) = timed(|| {
-                    energy::energy_aware(
-                        denoised,
-                        &self.core.removed,
-                        &rec.occupancy,
-                        c.energy_sigma,
-                    )
+                let (accepted, accepted_s) = self.accepted_interval();
+                let (all, all_s) = self.shared.interval();
+                let removed = &self.core.removed;
+                let (mut out, t) = timed(|| {
+                    self.guided_statmc(denoised, removed, &rec.occupancy, accepted, all)
                 });
-                let (mut out, s) = self.guided(&with_energy, s + t);
-                // statmc, unlike OIDN, leaves biases that only a block
-                // sees (docs/filter.md F10).
-                let (all, _) = self.shared.interval();
-                let ((), t) = timed(|| all.hold_blocks(&mut out, confidence::Z));
                 let (_, t2) = timed(|| {
                     self.held_out(&mut out, |second| {
                         Ok::<_, std::convert::Infallible>(self.guided_of_half(second))
                     })
                 });
-                (Arc::new(out), s + t + t2)
+                (Arc::new(out), s + accepted_s + all_s + t + t2)
             }
             Method::Oidn => {
                 let (denoised, s) = self.oidn_mean()?;
@@ -375,9 +366,10 @@ impl<'s, 'a> Estimators<'s, 'a> {
         }
         let (all, _) = self.shared.interval();
         let white = 1.0 / self.config.exposure;
+        // A pixel is decided with two samples in each half.
         let any_white = (0..g.data.len())
             .into_par_iter()
-            .any(|px| guided::shown_white(all, px, &g.data[px], white));
+            .any(|px| all.count[px] >= 4 && guided::shown_white(all, px, &g.data[px], white));
         if !any_white {
             return Ok(());
         }
@@ -416,17 +408,34 @@ impl<'s, 'a> Estimators<'s, 'a> {
         let all = confidence::from_moments_of(&folds, |f| &f.all, h, confidence::Z);
         let accepted = confidence::from_moments_of(&folds, |f| &f.accepted, h, self.config.guide_z);
         drop(folds);
-        let occupancy = &self.core.reconstruction.occupancy;
-        let d = imagespace::oidn::denoise(&all.centre, occupancy, self.aux)?;
+        let d = imagespace::oidn::denoise(&all.centre, &all.count, self.aux)?;
         let white = 1.0 / self.config.exposure;
         Ok((guided::guide(&d.image, &accepted, &all, white), all))
     }
 
-    /// `guided`'s image made from one half's samples alone — statmc of its
-    /// accepted samples, the energy it removed spread back, guided by its
-    /// intervals and held by blocks — and the half's intervals. Its
-    /// filtered value is the mean of its accepted samples (the half's mean
-    /// where it has none: no median fallback).
+    /// `guided`'s image of statmc's `denoised`: the energy the filter
+    /// `removed` spread back as in filtered_energy, steered by the
+    /// intervals ([`guided::guide`]), and held by blocks, which statmc,
+    /// unlike OIDN, needs (docs/filter.md F10).
+    fn guided_statmc(
+        &self,
+        denoised: &Image,
+        removed: &Image,
+        occupancy: &[u32],
+        accepted: &Interval,
+        all: &Interval,
+    ) -> Image {
+        let with_energy = energy::energy_aware(denoised, removed, occupancy, self.config.energy_sigma);
+        let white = 1.0 / self.config.exposure;
+        let mut g = guided::guide(&with_energy, accepted, all, white);
+        drop(with_energy);
+        all.hold_blocks(&mut g, confidence::Z);
+        g
+    }
+
+    /// `guided`'s image made from one half's samples alone, and the half's
+    /// intervals. Its filtered value is the mean of its accepted samples
+    /// (the half's mean where it has none: no median fallback).
     fn guided_of_half(&self, second: bool) -> (Image, Interval) {
         let h = self.shared.header;
         let folds = self.fold_half(second, statmc::stats_adder());
@@ -444,11 +453,8 @@ impl<'s, 'a> Estimators<'s, 'a> {
             }
         }
         let removed = energy::removed(&all.centre, &filtered);
-        let with_energy =
-            energy::energy_aware(&denoised, &removed, &all.count, self.config.energy_sigma);
-        let white = 1.0 / self.config.exposure;
-        let mut g = guided::guide(&with_energy, &accepted, &all, white);
-        all.hold_blocks(&mut g, confidence::Z);
+        drop(filtered);
+        let g = self.guided_statmc(&denoised, &removed, &all.count, &accepted, &all);
         (g, all)
     }
 

@@ -21,12 +21,13 @@
 //! mean would be seen.
 
 use super::confidence::{Interval, Moments};
+use super::statmc::Stats;
 use super::{Image, guided, per_pixel};
 use crate::dump::{Header, Record};
 use crate::par::prelude::*;
 
-/// The window's half-width in pixels: 17 × 17, statmc's.
-pub const RADIUS: usize = 8;
+/// The window's half-width in pixels: statmc's (17 × 17).
+pub const RADIUS: usize = super::statmc::RADIUS;
 
 /// Per pixel, one half's moments of its valid samples and `S` of its
 /// accepted ones.
@@ -38,8 +39,9 @@ pub(crate) struct HalfFold<S> {
     pub(crate) accepted: S,
 }
 
-impl<S> AsRef<S> for HalfFold<S> {
-    fn as_ref(&self) -> &S {
+/// statmc's window reads the accepted samples' statistics.
+impl AsRef<Stats> for HalfFold<Stats> {
+    fn as_ref(&self) -> &Stats {
         &self.accepted
     }
 }
@@ -71,9 +73,12 @@ pub(crate) fn fold_half<S: Default + Clone + Send>(
 
 /// `g` (made from all the samples, with `all` their intervals) with every
 /// white pixel set to its mean x̄ where the window's held-out estimate says
-/// x̄'s squared error is the smaller. `halves[k]` is the same image made
-/// from half k's samples alone, `all_halves[k]` half k's intervals;
-/// `white` the linear value the display shows as white.
+/// x̄'s squared error is the smaller; a pixel holding a rejected sample
+/// (`accepted[px]` below its count) only where its own estimate says so
+/// too, so that no neighbour's evidence restores an outlier the filter
+/// rejected. `halves[k]` is the same image made from half k's samples
+/// alone, `all_halves[k]` half k's intervals; `white` the linear value the
+/// display shows as white.
 pub fn prefer_mean(
     g: &mut Image,
     all: &Interval,
@@ -104,6 +109,8 @@ pub fn prefer_mean(
                 .sum::<f64>()
                 .into()
         })
+        // A non-finite estimate decides nothing (nor its window's sum).
+        .map(|d: Option<f64>| d.filter(|d| d.is_finite()))
         .collect();
     let flat: Vec<f64> = delta.iter().map(|d| d.unwrap_or(0.0)).collect();
     let sums = window_sums(&flat, w, ht, RADIUS);
