@@ -347,3 +347,49 @@ fn the_recommended_image_keeps_the_highlight_and_drops_the_fireflies() {
         }
     }
 }
+
+/// The held-out halves (docs/filter.md F10) on a film the display shows
+/// white almost everywhere (the field ×100): the recommended image is the
+/// same bits at 1 and 3 threads; with them it differs from the image
+/// made once (`held_out = false`) only where a white pixel took its own
+/// mean, and at no firefly pixel.
+#[test]
+fn the_held_out_halves_move_white_pixels_to_their_mean_alike_on_any_thread_count() {
+    use pathdensity::config::Method;
+    let (h, recs, _, ff) = highlight_and_fireflies(100.0);
+    let run = |threads: usize, held_out: bool| {
+        let config = FilterConfig {
+            held_out,
+            ..FilterConfig::DEFAULT
+        };
+        let options = pipeline::RunOptions {
+            threads,
+            exact_sigma: ExactSigma::None,
+            reference: None,
+            progress: &Silent,
+            aux: None,
+        };
+        let run = pipeline::run(&recs, &h, &config, &options).unwrap();
+        let mean = run.image(Method::Mean).unwrap().data.clone();
+        (run.image(Method::Guided).unwrap().data.clone(), mean)
+    };
+    let (one, mean) = run(1, true);
+    let (three, _) = run(3, true);
+    assert!(
+        one.iter()
+            .zip(&three)
+            .all(|(a, b)| a.map(f64::to_bits) == b.map(f64::to_bits))
+    );
+    let (once, _) = run(2, false);
+    let moved: Vec<usize> = (0..one.len()).filter(|&p| one[p] != once[p]).collect();
+    assert!(!moved.is_empty(), "no white pixel was decided");
+    // The intervals' running mean, the mean image's sum over the count.
+    let near = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs();
+    assert!(
+        moved
+            .iter()
+            .all(|&p| (0..3).all(|c| near(one[p][c], mean[p][c])))
+    );
+    let pixel = |r: &Record| r.y as usize * W as usize + r.x as usize;
+    assert!(ff.iter().all(|&f| !moved.contains(&pixel(&recs[f]))));
+}

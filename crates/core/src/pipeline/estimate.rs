@@ -302,9 +302,8 @@ impl<'s, 'a> Estimators<'s, 'a> {
                 let (accepted, accepted_s) = self.accepted_interval();
                 let (all, all_s) = self.shared.interval();
                 let removed = &self.core.removed;
-                let (mut out, t) = timed(|| {
-                    self.guided_statmc(denoised, removed, &rec.occupancy, accepted, all)
-                });
+                let (mut out, t) =
+                    timed(|| self.guided_statmc(denoised, removed, &rec.occupancy, accepted, all));
                 let (_, t2) = timed(|| {
                     self.held_out(&mut out, |second| {
                         Ok::<_, std::convert::Infallible>(self.guided_of_half(second))
@@ -425,7 +424,8 @@ impl<'s, 'a> Estimators<'s, 'a> {
         accepted: &Interval,
         all: &Interval,
     ) -> Image {
-        let with_energy = energy::energy_aware(denoised, removed, occupancy, self.config.energy_sigma);
+        let with_energy =
+            energy::energy_aware(denoised, removed, occupancy, self.config.energy_sigma);
         let white = 1.0 / self.config.exposure;
         let mut g = guided::guide(&with_energy, accepted, all, white);
         drop(with_energy);

@@ -180,6 +180,40 @@ mod tests {
         assert_eq!(second[1].accepted, [20.0]);
     }
 
+    /// A pixel- or pass-major dump, read in place, folds its halves as a
+    /// scan of the same records in no declared order does.
+    #[test]
+    fn a_placed_dump_folds_its_halves_as_a_scan_does() {
+        use crate::dump::Order;
+        use crate::synth::SynthParams;
+        for order in [Order::PassMajor, Order::PixelMajor] {
+            let synth = SynthParams {
+                width: 7,
+                height: 5,
+                frames: 2,
+                spp: 6,
+                order,
+                ..SynthParams::default()
+            };
+            let (h, records): (Header, Vec<Record>) = (synth.header(), synth.records().collect());
+            let scan = Header {
+                order: Order::Unspecified,
+                ..h.clone()
+            };
+            let accepted = |i: usize| !i.is_multiple_of(3);
+            let push = |v: &mut Vec<f64>, x: [f64; 3]| v.push(x[0]);
+            for second in [false, true] {
+                let placed = fold_half(&records, &h, second, accepted, push);
+                let scanned = fold_half(&records, &scan, second, accepted, push);
+                for (a, b) in placed.iter().zip(&scanned) {
+                    assert_eq!((a.all.n, a.all.mean), (b.all.n, b.all.mean));
+                    assert_eq!(a.accepted, b.accepted);
+                }
+                assert!(placed.iter().all(|f| f.seen == 6 && f.all.n == 3));
+            }
+        }
+    }
+
     fn one(v: f64) -> Image {
         Image {
             width: 1,
@@ -212,7 +246,14 @@ mod tests {
             let a = halves.map(|(m, se)| interval(m, se, n));
             let gh = one(g_halves);
             let mut out = one(g);
-            prefer_mean(&mut out, &all, [&gh, &gh], [&a[0], &a[1]], white);
+            prefer_mean(
+                &mut out,
+                &all,
+                &all.count,
+                [&gh, &gh],
+                [&a[0], &a[1]],
+                white,
+            );
             out.data[0][0]
         };
         // ((20 − 11)² + (20 − 9)²)/2 − 1 − 1 = 99 > 0: the mean.
@@ -222,6 +263,44 @@ mod tests {
         // Not white, or a half of one sample: as it was.
         assert_eq!(decide(20.0, [(9.0, 1.0), (11.0, 1.0)], 20.0, 15.0, 8), 20.0);
         assert_eq!(decide(20.0, [(9.0, 1.0), (11.0, 1.0)], 20.0, 1.0, 1), 20.0);
+    }
+
+    /// On a 2 × 1 film a pixel whose own estimate mildly prefers the
+    /// denoiser is outvoted by its neighbour's strong one, unless it holds
+    /// a rejected sample: then only its own estimate may restore it.
+    #[test]
+    fn a_neighbour_does_not_restore_a_pixel_with_a_rejected_sample() {
+        let two = |v: [f64; 2]| Image {
+            width: 2,
+            height: 1,
+            frames: 1,
+            data: v.map(|v| [v; 3]).to_vec(),
+        };
+        let intervals = |m: [f64; 2], se: [f64; 2], n: u32| Interval {
+            centre: two(m),
+            half_width: two(se.map(|s| 3.0 * s)),
+            count: vec![n; 2],
+            own_se: two(se),
+            z: 3.0,
+        };
+        let all = intervals([10.0, 10.0], [1.0, 1.0], 16);
+        // Pixel 0: δ = ((20 − 11)² + (20 − 9)²)/2 − 2 = 99 per channel;
+        // pixel 1: δ = (1 + 1)/2 − 2 = −1 per channel.
+        let halves = [
+            intervals([9.0, 9.0], [1.0, 1.0], 8),
+            intervals([11.0, 11.0], [1.0, 1.0], 8),
+        ];
+        let g_halves = two([20.0, 10.0]);
+        let decide = |accepted: [u32; 2]| {
+            let mut out = two([20.0, 12.0]);
+            let gh = [&g_halves, &g_halves];
+            prefer_mean(&mut out, &all, &accepted, gh, [&halves[0], &halves[1]], 1.0);
+            [out.data[0][0], out.data[1][0]]
+        };
+        assert_eq!(decide([16, 16]), [10.0, 10.0]);
+        assert_eq!(decide([16, 15]), [10.0, 12.0]);
+        // Its own strong estimate restores a pixel with a rejected sample.
+        assert_eq!(decide([15, 16]), [10.0, 10.0]);
     }
 
     #[test]
