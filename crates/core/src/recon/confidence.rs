@@ -179,8 +179,9 @@ impl Moments {
 }
 
 /// The confidence interval of every pixel's mean, at `z` standard errors,
-/// in one serial pass (the pipeline makes it beside the replay, whose
-/// threads it would otherwise hold up).
+/// folded in one serial pass (the pipeline makes it beside the replay,
+/// whose threads it would otherwise hold up); the intervals from the
+/// moments are then made on the pool.
 pub fn interval(records: &[Record], h: &Header, z: f64) -> Interval {
     let moments = per_pixel::fold(records, h, 1, |_| true, Moments::add);
     from_moments(&moments, h, z)

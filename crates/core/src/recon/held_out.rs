@@ -1,19 +1,19 @@
 //! Held-out halves: which of two estimates of a white pixel is nearer the
 //! truth, judged on samples the estimate was not made from
-//! (docs/filter.md F10, "Saturated pixels").
+//! (docs/filter.md F10, "Held-out halves").
 //!
 //! Each pixel's valid samples are split in two halves by their ordinal in
-//! file order (even, odd). An image G_k made from half k alone is
-//! independent of the other half's mean x̄_j, so
-//! E[(G_k − x̄_j)²] = MSE(G_k) + Var(x̄_j): subtracting x̄_j's variance
-//! (its own s²/n) leaves an unbiased estimate of G_k's squared error, and
-//! Var(x̄_k) is x̄_k's own. Their difference, averaged over both ways round
-//! and summed over a window, says whether the mean or the denoised image is
-//! nearer the truth there (the dual-buffer error estimates of adaptive
-//! rendering; Rousselle, Knaus and Zwicker, "Adaptive Rendering with
-//! Non-Local Means Filtering", SIGGRAPH Asia 2012). The estimate compares
-//! half-sample images; the full mean's variance is half its half's, and a
-//! denoiser's bias is not, so it leans towards the denoiser.
+//! file order (even, odd). An image G_k made from half k alone is nearly
+//! independent of the other half's mean x̄_j (the filter's decisions saw
+//! both), so (G_k − x̄_j)² less x̄_j's variance (its own s²/n) estimates
+//! G_k's squared error, and Var(x̄_k) is x̄_k's own. Their difference,
+//! averaged over both ways round and summed over a window, says whether
+//! the mean or the denoised image is nearer the truth there (the
+//! dual-buffer error estimates of adaptive rendering; Rousselle, Knaus and
+//! Zwicker, "Adaptive Rendering with Non-Local Means Filtering", SIGGRAPH
+//! Asia 2012). The estimate compares half-sample images; the full mean's
+//! variance is half its half's, and a denoiser's bias is not, so it leans
+//! towards the denoiser.
 //!
 //! Only pixels the display shows as white on every channel, in both G and
 //! x̄, are decided: there the two look the same and the linear error is the
