@@ -77,14 +77,7 @@ pub(crate) fn shown_white(all: &Interval, px: usize, v: &[f64; 3], white: f64) -
 mod tests {
     use super::*;
 
-    fn one(v: f64) -> Image {
-        Image {
-            width: 1,
-            height: 1,
-            frames: 1,
-            data: vec![[v; 3]],
-        }
-    }
+    use crate::recon::test_pixel as one;
 
     /// A display that shows nothing as white.
     fn guide_(d: &Image, accepted: &Interval, all: &Interval) -> Image {

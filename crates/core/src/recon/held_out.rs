@@ -214,14 +214,7 @@ mod tests {
         }
     }
 
-    fn one(v: f64) -> Image {
-        Image {
-            width: 1,
-            height: 1,
-            frames: 1,
-            data: vec![[v; 3]],
-        }
-    }
+    use crate::recon::test_pixel as one;
 
     fn interval(mean: f64, se: f64, n: u32) -> Interval {
         Interval {

@@ -282,6 +282,17 @@ impl Reconstruction {
     }
 }
 
+/// A 1 × 1 film of grey `v`, for the tests of this module's estimators.
+#[cfg(test)]
+pub(crate) fn test_pixel(v: f64) -> Image {
+    Image {
+        width: 1,
+        height: 1,
+        frames: 1,
+        data: vec![[v; 3]],
+    }
+}
+
 /// A still film's header with nothing else set, for the tests of this
 /// module's estimators.
 #[cfg(test)]
