@@ -1,0 +1,161 @@
+//! The guided images (docs/filter.md F10): a denoiser's image steered by
+//! the filter's evidence, `guided` over statmc and `guided_oidn` over OIDN,
+//! with their white pixels decided by held-out halves of the samples
+//! ([`held_out`]): each image made again from each half alone.
+
+use std::sync::Arc;
+
+use super::{Estimators, timed};
+use crate::density::Decision;
+use crate::imagespace::{self, oidn::OidnError};
+use crate::par::prelude::*;
+use crate::recon::confidence::{self, Interval, Moments};
+use crate::recon::{Image, energy, guided, held_out, statmc};
+
+impl Estimators<'_, '_> {
+    /// `guided`'s image and the seconds from the dump.
+    pub(super) fn guided_image(&self) -> (Arc<Image>, f64) {
+        let (denoised, s) = self.statmc();
+        let (accepted, accepted_s) = self.accepted_interval();
+        let (all, all_s) = self.shared.interval();
+        let (removed, occupancy) = (&self.core.removed, &self.core.reconstruction.occupancy);
+        let (mut out, t) =
+            timed(|| self.guided_statmc(denoised, removed, occupancy, accepted, all));
+        let (_, t2) = timed(|| {
+            self.held_out(&mut out, |second| {
+                Ok::<_, std::convert::Infallible>(self.guided_of_half(second))
+            })
+        });
+        (Arc::new(out), s + accepted_s + all_s + t + t2)
+    }
+
+    /// `guided_oidn`'s image and the seconds from the dump.
+    pub(super) fn guided_oidn_image(&self) -> Result<(Arc<Image>, f64), OidnError> {
+        let (denoised, s) = self.oidn_mean()?;
+        let (mut out, s) = self.guided(denoised, *s);
+        let half = |second| self.guided_oidn_of_half(second);
+        let (decided, t) = timed(|| self.held_out(&mut out, half));
+        decided?;
+        Ok((Arc::new(out), s + t))
+    }
+
+    /// `img` (made in `seconds`) steered by the accepted samples
+    /// ([`guided::guide`]), and the seconds from the dump.
+    fn guided(&self, img: &Image, seconds: f64) -> (Image, f64) {
+        let (accepted, accepted_s) = self.accepted_interval();
+        let (all, all_s) = self.shared.interval();
+        let white = 1.0 / self.config.exposure;
+        let (out, t) = timed(|| guided::guide(img, accepted, all, white));
+        (
+            out,
+            seconds.max(self.core.replay_seconds) + accepted_s + all_s + t,
+        )
+    }
+
+    /// `g`, a guided image, with its white pixels decided by the held-out
+    /// halves ([`held_out`]): `make(second)` makes the same image from one
+    /// half's samples alone, with that half's intervals. Nothing is made
+    /// where no pixel is white.
+    fn held_out<E>(
+        &self,
+        g: &mut Image,
+        make: impl Fn(bool) -> Result<(Image, Interval), E>,
+    ) -> Result<(), E> {
+        if !self.config.held_out {
+            return Ok(());
+        }
+        let (all, _) = self.shared.interval();
+        let white = 1.0 / self.config.exposure;
+        // A pixel is decided with two samples in each half.
+        let any_white = (0..g.data.len())
+            .into_par_iter()
+            .any(|px| all.count[px] >= 4 && guided::shown_white(all, px, &g.data[px], white));
+        if !any_white {
+            return Ok(());
+        }
+        let (g0, a0) = make(false)?;
+        let (g1, a1) = make(true)?;
+        let (accepted, _) = self.accepted_interval();
+        held_out::prefer_mean(g, all, &accepted.count, [&g0, &g1], [&a0, &a1], white);
+        Ok(())
+    }
+
+    /// One half's folds of its samples and of its accepted ones
+    /// ([`held_out::fold_half`]).
+    fn fold_half<S: Default + Clone + Send>(
+        &self,
+        second: bool,
+        add: impl Fn(&mut S, [f64; 3]) + Sync,
+    ) -> Vec<held_out::HalfFold<S>> {
+        let decisions = self
+            .decisions
+            .expect("an image that needs the decisions is made with them");
+        let (records, h) = (self.shared.records, self.shared.header);
+        held_out::fold_half(
+            records,
+            h,
+            second,
+            |i| Decision::accepted(decisions[i]),
+            add,
+        )
+    }
+
+    /// `guided_oidn`'s image made from one half's samples alone, and the
+    /// half's intervals.
+    fn guided_oidn_of_half(&self, second: bool) -> Result<(Image, Interval), OidnError> {
+        let h = self.shared.header;
+        let folds = self.fold_half(second, Moments::add);
+        let all = confidence::from_moments_of(&folds, |f| &f.all, h, confidence::Z);
+        let accepted = confidence::from_moments_of(&folds, |f| &f.accepted, h, self.config.guide_z);
+        drop(folds);
+        let d = imagespace::oidn::denoise(&all.centre, &all.count, self.aux)?;
+        let white = 1.0 / self.config.exposure;
+        Ok((guided::guide(&d.image, &accepted, &all, white), all))
+    }
+
+    /// `guided`'s image of statmc's `denoised`: the energy the filter
+    /// `removed` spread back as in filtered_energy, steered by the
+    /// intervals ([`guided::guide`]), and held by blocks, which statmc,
+    /// unlike OIDN, needs (docs/filter.md F10).
+    fn guided_statmc(
+        &self,
+        denoised: &Image,
+        removed: &Image,
+        occupancy: &[u32],
+        accepted: &Interval,
+        all: &Interval,
+    ) -> Image {
+        let with_energy =
+            energy::energy_aware(denoised, removed, occupancy, self.config.energy_sigma);
+        let white = 1.0 / self.config.exposure;
+        let mut g = guided::guide(&with_energy, accepted, all, white);
+        drop(with_energy);
+        all.hold_blocks(&mut g, confidence::Z);
+        g
+    }
+
+    /// `guided`'s image made from one half's samples alone, and the half's
+    /// intervals. Its filtered value is the mean of its accepted samples
+    /// (the half's mean where it has none: no median fallback).
+    fn guided_of_half(&self, second: bool) -> (Image, Interval) {
+        let h = self.shared.header;
+        let folds = self.fold_half(second, statmc::stats_adder());
+        let all = confidence::from_moments_of(&folds, |f| &f.all, h, confidence::Z);
+        let accepted =
+            confidence::from_moments_of(&folds, |f| f.accepted.as_ref(), h, self.config.guide_z);
+        let window = statmc::Window::new(&folds, h);
+        drop(folds);
+        let denoised = window.denoise(h);
+        drop(window);
+        let mut filtered = accepted.centre.clone();
+        for (px, f) in filtered.data.iter_mut().enumerate() {
+            if accepted.count[px] == 0 {
+                *f = all.centre.data[px];
+            }
+        }
+        let removed = energy::removed(&all.centre, &filtered);
+        drop(filtered);
+        let g = self.guided_statmc(&denoised, &removed, &all.count, &accepted, &all);
+        (g, all)
+    }
+}
