@@ -609,7 +609,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Exit codes (README, "Exit codes"): bad input or I/O, a usage error
+/// Exit codes (docs/commands.md, "Exit codes"): bad input or I/O, a usage error
 /// (clap's own, or an option value the configuration refuses), a
 /// regression fixture that drifted, a batch in which some dumps failed.
 const EXIT_INPUT: u8 = 1;
