@@ -335,13 +335,7 @@ pub(crate) fn stats_of(
     keep: impl Fn(usize) -> bool + Sync,
 ) -> Vec<Stats> {
     let bands = crate::par::current_num_threads();
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2 (checked just above).
-        let add = |s: &mut Stats, x: [f64; 3]| unsafe { avx2::add(s, x) };
-        return per_pixel::fold(records, h, bands, keep, add);
-    }
-    per_pixel::fold(records, h, bands, keep, Stats::add)
+    per_pixel::fold(records, h, bands, keep, stats_adder())
 }
 
 /// Pixels per run of a row that the window takes at once: the run's
