@@ -19,7 +19,8 @@
 //! order, in f64: exact for any thread count, and with no cancellation
 //! when a pixel's samples are large and nearly equal (a light's 60 ± 10⁻⁶).
 
-use super::{Image, per_pixel};
+use super::Image;
+use super::per_pixel::{self, Band};
 use crate::dump::{Header, Record};
 use crate::par::prelude::*;
 
@@ -44,6 +45,26 @@ pub struct Interval {
 }
 
 impl Interval {
+    /// The film's intervals before any band's are put: no pixel has a
+    /// sample.
+    pub(crate) fn empty(h: &Header, z: f64) -> Interval {
+        Interval {
+            centre: Image::for_header(h),
+            half_width: Image::for_header(h),
+            count: vec![0; h.pixels() * h.frames as usize],
+            own_se: Image::for_header(h),
+            z,
+        }
+    }
+
+    /// `band`'s own pixels' intervals, made from its folds, put in place.
+    pub(crate) fn put(&mut self, band: &Band, from: &Interval) {
+        band.put(&mut self.centre.data, &from.centre.data);
+        band.put(&mut self.half_width.data, &from.half_width.data);
+        band.put(&mut self.count, &from.count);
+        band.put(&mut self.own_se.data, &from.own_se.data);
+    }
+
     /// `v` held inside pixel `px`'s interval, channel by channel.
     #[inline]
     pub fn clamp(&self, px: usize, v: [f64; 3]) -> [f64; 3] {

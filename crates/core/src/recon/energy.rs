@@ -53,7 +53,15 @@ pub fn removed(mean: &Image, filtered: &Image) -> Image {
 /// assert!(out.data.iter().all(|p| (p[0] - 26.0 / 25.0).abs() < 0.01));
 /// ```
 pub fn energy_aware(filtered: &Image, removed: &Image, occupancy: &[u32], sigma: f64) -> Image {
-    let spread = Spread::new(filtered, sigma, occupancy);
+    let mut out = filtered.clone();
+    spread_into(&mut out, removed, occupancy, sigma);
+    out
+}
+
+/// [`energy_aware`] in place: `removed` spread into `out`, the filtered
+/// image.
+pub fn spread_into(out: &mut Image, removed: &Image, occupancy: &[u32], sigma: f64) {
+    let spread = Spread::new(out, sigma, occupancy);
     // The sources, in pixel order, each with its window's total weight.
     let sources: Vec<(usize, f64)> = (0..removed.data.len())
         .into_par_iter()
@@ -64,7 +72,6 @@ pub fn energy_aware(filtered: &Image, removed: &Image, occupancy: &[u32], sigma:
             (src, total)
         })
         .collect();
-    let mut out = filtered.clone();
     let w = spread.w.max(1);
     // A band of rows a job: each takes, in pixel order, the sources whose
     // window reaches it, and writes only its own rows.
@@ -86,7 +93,6 @@ pub fn energy_aware(filtered: &Image, removed: &Image, occupancy: &[u32], sigma:
                 });
             }
         });
-    out
 }
 
 /// Rows of the film (over all frames) that one job of [`energy_aware`]

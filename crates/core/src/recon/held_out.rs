@@ -21,8 +21,9 @@
 //! mean would be seen.
 
 use super::confidence::{Interval, Moments};
+use super::per_pixel::{self, Band};
 use super::statmc::Stats;
-use super::{Image, guided, per_pixel};
+use super::{Image, guided};
 use crate::dump::{Header, Record};
 use crate::par::prelude::*;
 
@@ -46,20 +47,33 @@ impl AsRef<Stats> for HalfFold<Stats> {
     }
 }
 
-/// Every pixel's [`HalfFold`] of its first half (`second` false: the even
-/// ordinals among its valid samples in file order) or its second (the
-/// odd ones), in one pass; `accepted(i)` says whether record i was
-/// accepted, `add` is `S`'s update.
+/// Bytes of one band's [`HalfFold`]s ([`per_pixel::bands`]): a half's
+/// intervals and statmc's window are made band by band, and the folds of
+/// the whole film were a third of a 1080p frame's memory.
+pub(crate) const BAND_BYTES: usize = 32 << 20;
+
+/// The film's bands for [`fold_half`] of `S`, with `halo` rows either
+/// side: what is made from a band's folds reads that far (one row for the
+/// intervals' 3 × 3 neighbourhoods).
+pub(crate) fn bands<S>(h: &Header, halo: usize) -> Vec<Band> {
+    per_pixel::bands(h, size_of::<HalfFold<S>>(), BAND_BYTES, halo)
+}
+
+/// The [`HalfFold`] of each of the film's pixels `pixels` of its first
+/// half (`second` false: the even ordinals among its valid samples in file
+/// order) or its second (the odd ones), in one pass; `accepted(i)` says
+/// whether record i was accepted, `add` is `S`'s update.
 pub(crate) fn fold_half<S: Default + Clone + Send>(
     records: &[Record],
     h: &Header,
+    pixels: std::ops::Range<usize>,
     second: bool,
     accepted: impl Fn(usize) -> bool + Sync,
     add: impl Fn(&mut S, [f64; 3]) + Sync,
 ) -> Vec<HalfFold<S>> {
     let jobs = crate::par::current_num_threads();
     let item = |i: usize, r: &Record| Some(([r.r as f64, r.g as f64, r.b as f64], accepted(i)));
-    per_pixel::fold_colours(records, h, jobs, item, |f: &mut HalfFold<S>, (x, acc)| {
+    let fold = |f: &mut HalfFold<S>, (x, acc): ([f64; 3], bool)| {
         let mine = (f.seen % 2 == 1) == second;
         f.seen += 1;
         if mine {
@@ -68,7 +82,36 @@ pub(crate) fn fold_half<S: Default + Clone + Send>(
                 add(&mut f.accepted, x);
             }
         }
-    })
+    };
+    per_pixel::fold_colours_in(records, h, pixels, jobs, item, fold)
+}
+
+/// What the decision reads of one half: the image made from its samples
+/// alone, and their per-pixel mean, own standard error and count.
+pub struct Half {
+    pub image: Image,
+    pub mean: Image,
+    pub own_se: Image,
+    pub count: Vec<u32>,
+}
+
+impl Half {
+    /// The half's `image`, and what the decision reads of its intervals
+    /// `all` (their widths go).
+    pub fn new(image: Image, all: Interval) -> Half {
+        let Interval {
+            centre,
+            own_se,
+            count,
+            ..
+        } = all;
+        Half {
+            image,
+            mean: centre,
+            own_se,
+            count,
+        }
+    }
 }
 
 /// `g` (made from all the samples, with `all` their intervals) with every
@@ -76,15 +119,13 @@ pub(crate) fn fold_half<S: Default + Clone + Send>(
 /// x̄'s squared error is the smaller; a pixel holding a rejected sample
 /// (`accepted[px]` below its count) only where its own estimate says so
 /// too, so that no neighbour's evidence restores an outlier the filter
-/// rejected. `halves[k]` is the same image made from half k's samples
-/// alone, `all_halves[k]` half k's intervals; `white` the linear value the
-/// display shows as white.
+/// rejected. `halves[k]` is half k's [`Half`]; `white` the linear value
+/// the display shows as white.
 pub fn prefer_mean(
     g: &mut Image,
     all: &Interval,
     accepted: &[u32],
-    halves: [&Image; 2],
-    all_halves: [&Interval; 2],
+    halves: [&Half; 2],
     white: f64,
 ) {
     let (w, ht) = (g.width, g.height);
@@ -94,12 +135,12 @@ pub fn prefer_mean(
         .into_par_iter()
         .map(|px| {
             let decided = guided::shown_white(all, px, &g.data[px], white)
-                && all_halves.iter().all(|a| a.count[px] >= 2);
+                && halves.iter().all(|h| h.count[px] >= 2);
             if !decided {
                 return None;
             }
-            let [a, b] = all_halves.map(|a| (a.centre.data[px], a.own_se.data[px]));
-            let [ga, gb] = halves.map(|g| g.data[px]);
+            let [a, b] = halves.map(|h| (h.mean.data[px], h.own_se.data[px]));
+            let [ga, gb] = halves.map(|h| h.image.data[px]);
             (0..3)
                 .map(|c| {
                     let (va, vb) = (a.1[c] * a.1[c], b.1[c] * b.1[c]);
@@ -170,7 +211,7 @@ mod tests {
         let push = |v: &mut Vec<f64>, x: [f64; 3]| v.push(x[0]);
         let all_but_the_last = |i: usize| i != 7;
         let [first, second] =
-            [false, true].map(|k| fold_half(&records, &h, k, all_but_the_last, push));
+            [false, true].map(|k| fold_half(&records, &h, 0..2, k, all_but_the_last, push));
         assert_eq!((first[0].all.n, first[0].all.mean[0]), (2, 2.5));
         assert_eq!((second[0].all.n, second[0].all.mean[0]), (2, 5.0));
         assert_eq!((first[1].all.n, second[1].all.n), (2, 1));
@@ -203,14 +244,80 @@ mod tests {
             let accepted = |i: usize| !i.is_multiple_of(3);
             let push = |v: &mut Vec<f64>, x: [f64; 3]| v.push(x[0]);
             for second in [false, true] {
-                let placed = fold_half(&records, &h, second, accepted, push);
-                let scanned = fold_half(&records, &scan, second, accepted, push);
+                let film = 0..70;
+                let placed = fold_half(&records, &h, film.clone(), second, accepted, push);
+                let scanned = fold_half(&records, &scan, film, second, accepted, push);
                 for (a, b) in placed.iter().zip(&scanned) {
                     assert_eq!((a.all.n, a.all.mean), (b.all.n, b.all.mean));
                     assert_eq!(a.accepted, b.accepted);
                 }
                 assert!(placed.iter().all(|f| f.seen == 6 && f.all.n == 3));
             }
+        }
+    }
+
+    /// A half's intervals and statmc's window made band by band, each band
+    /// with its halo, are the whole film's, bit for bit, in either placed
+    /// order and across frames; the bands' own rows cover the film once.
+    #[test]
+    fn bands_make_the_films_intervals_and_window() {
+        use crate::dump::Order;
+        use crate::recon::confidence::{self, Interval};
+        use crate::recon::statmc;
+        use crate::synth::SynthParams;
+        for order in [Order::PassMajor, Order::PixelMajor] {
+            let synth = SynthParams {
+                width: 24,
+                height: 40,
+                frames: 2,
+                spp: 6,
+                order,
+                firefly_fraction: 0.05,
+                light: Some((5, 12, 4, 40.0)),
+                ..SynthParams::default()
+            };
+            let (h, records): (Header, Vec<Record>) = (synth.header(), synth.records().collect());
+            let accepted = |i: usize| i % 7 != 3;
+            let film = 0..24 * 40 * 2;
+            let add = statmc::stats_adder();
+            let whole = fold_half(&records, &h, film.clone(), true, accepted, add);
+            let interval = confidence::from_moments_of(&whole, |f| &f.all, &h, 3.0);
+            let denoised = statmc::Window::new(&whole, &h).denoise(&h);
+
+            // Bands of 4 rows (24 pixels of one byte each, a budget of 96).
+            let bands = per_pixel::bands(&h, 1, 96, statmc::HALO);
+            assert_eq!(bands.len(), 20);
+            let mut own = vec![0; film.len()];
+            let mut banded = Interval::empty(&h, 3.0);
+            let mut banded_denoised = Image::for_header(&h);
+            for band in &bands {
+                band.own_of(&mut own).iter_mut().for_each(|n| *n += 1);
+                let folds = fold_half(&records, &h, band.pixels.clone(), true, accepted, add);
+                let bh = &band.header;
+                banded.put(
+                    band,
+                    &confidence::from_moments_of(&folds, |f| &f.all, bh, 3.0),
+                );
+                let out = band.own_of(&mut banded_denoised.data);
+                statmc::Window::new(&folds, bh).denoise_into(bh, band.own.start, out);
+            }
+            assert!(own.iter().all(|&n| n == 1));
+            let bits = |img: &Image| -> Vec<u64> {
+                img.data.iter().flatten().map(|v| v.to_bits()).collect()
+            };
+            assert_eq!(bits(&banded.centre), bits(&interval.centre));
+            assert_eq!(bits(&banded.half_width), bits(&interval.half_width));
+            assert_eq!(bits(&banded.own_se), bits(&interval.own_se));
+            assert_eq!(banded.count, interval.count);
+            assert_eq!(bits(&banded_denoised), bits(&denoised));
+            // The window reads its halo: without it a band's edge differs.
+            let no_halo = per_pixel::bands(&h, 1, 96, 1);
+            let band = &no_halo[1];
+            let folds = fold_half(&records, &h, band.pixels.clone(), true, accepted, add);
+            let mut out = vec![[0.0; 3]; band.own.len()];
+            let bh = &band.header;
+            statmc::Window::new(&folds, bh).denoise_into(bh, band.own.start, &mut out);
+            assert_ne!(out, band.own_of(&mut denoised.data.clone()).to_vec());
         }
     }
 
@@ -236,17 +343,9 @@ mod tests {
     fn white_pixels_take_the_estimate_the_other_half_prefers() {
         let decide = |g: f64, halves: [(f64, f64); 2], g_halves: f64, white: f64, n: u32| {
             let all = interval(10.0, 1.0, 2 * n);
-            let a = halves.map(|(m, se)| interval(m, se, n));
-            let gh = one(g_halves);
+            let a = halves.map(|(m, se)| Half::new(one(g_halves), interval(m, se, n)));
             let mut out = one(g);
-            prefer_mean(
-                &mut out,
-                &all,
-                &all.count,
-                [&gh, &gh],
-                [&a[0], &a[1]],
-                white,
-            );
+            prefer_mean(&mut out, &all, &all.count, [&a[0], &a[1]], white);
             out.data[0][0]
         };
         // ((20 − 11)² + (20 − 9)²)/2 − 1 − 1 = 99 > 0: the mean.
@@ -282,12 +381,11 @@ mod tests {
         let halves = [
             intervals([9.0, 9.0], [1.0, 1.0], 8),
             intervals([11.0, 11.0], [1.0, 1.0], 8),
-        ];
-        let g_halves = two([20.0, 10.0]);
+        ]
+        .map(|a| Half::new(two([20.0, 10.0]), a));
         let decide = |accepted: [u32; 2]| {
             let mut out = two([20.0, 12.0]);
-            let gh = [&g_halves, &g_halves];
-            prefer_mean(&mut out, &all, &accepted, gh, [&halves[0], &halves[1]], 1.0);
+            prefer_mean(&mut out, &all, &accepted, [&halves[0], &halves[1]], 1.0);
             [out.data[0][0], out.data[1][0]]
         };
         assert_eq!(decide([16, 16]), [10.0, 10.0]);

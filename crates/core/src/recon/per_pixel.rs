@@ -1,5 +1,6 @@
 //! Per-pixel folds of a dump's samples in file order.
 
+use std::ops::Range;
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 
 use crate::dump::{Header, Order, Record, Validity};
@@ -42,17 +43,30 @@ pub fn fold_colours<A: Default + Clone + Send, T>(
     colour: impl Fn(usize, &Record) -> Option<T> + Sync,
     add: impl Fn(&mut A, T) + Sync,
 ) -> Vec<A> {
+    let film = 0..h.pixels() * h.frames as usize;
+    fold_colours_in(records, h, film, jobs, colour, add)
+}
+
+/// [`fold_colours`] of the film's pixels `pixels` alone (indices over all
+/// frames), one fold each, in order.
+pub fn fold_colours_in<A: Default + Clone + Send, T>(
+    records: &[Record],
+    h: &Header,
+    pixels: Range<usize>,
+    jobs: usize,
+    colour: impl Fn(usize, &Record) -> Option<T> + Sync,
+    add: impl Fn(&mut A, T) + Sync,
+) -> Vec<A> {
     let tile = (TILE_BYTES / size_of::<A>().max(1)).max(1);
-    if let Some(acc) = in_place(records, h, jobs > 1, tile, &colour, &add) {
+    if let Some(acc) = in_place(records, h, pixels.clone(), jobs > 1, tile, &colour, &add) {
         return acc;
     }
     let width = (h.width as usize).max(1);
-    let pixels = h.pixels() * h.frames as usize;
-    let mut acc = vec![A::default(); pixels];
+    let mut acc = vec![A::default(); pixels.len()];
     let bands = jobs.clamp(1, MAX_BANDS);
-    let band = (pixels / width).div_ceil(bands).max(1) * width;
+    let band = (pixels.len() / width).div_ceil(bands).max(1) * width;
     acc.par_chunks_mut(band).enumerate().for_each(|(b, acc)| {
-        let first = b * band;
+        let first = pixels.start + b * band;
         for (i, r) in records.iter().enumerate() {
             if r.validity(h) != Validity::Valid {
                 continue;
@@ -72,6 +86,72 @@ pub fn fold_colours<A: Default + Clone + Send, T>(
     acc
 }
 
+/// A band of one frame's rows, with up to `halo` rows of the frame either
+/// side: a fold in bands folds one at a time, so that what it derives
+/// from a pixel's neighbourhood (within `halo` rows) is the whole film's,
+/// with the folds of a band of the film in memory rather than all of them.
+pub struct Band {
+    /// The folded rows as a film of their own: the film's width, the
+    /// band's rows with their halo, one frame (the whole film where there
+    /// is one band).
+    pub header: Header,
+    /// The film's pixels folded (indices over all frames).
+    pub pixels: Range<usize>,
+    /// The band's own pixels among them, counted from `pixels.start`.
+    pub own: Range<usize>,
+}
+
+impl Band {
+    /// The band's own pixels of `src` (one per folded pixel) written to
+    /// `dst` (one per film pixel).
+    pub fn put<T: Copy>(&self, dst: &mut [T], src: &[T]) {
+        self.own_of(dst).copy_from_slice(&src[self.own.clone()]);
+    }
+
+    /// The band's own pixels of `film` (one per film pixel).
+    pub fn own_of<'a, T>(&self, film: &'a mut [T]) -> &'a mut [T] {
+        let at = self.pixels.start + self.own.start;
+        &mut film[at..at + self.own.len()]
+    }
+}
+
+/// The film in bands of whole rows, each frame apart, that keep about
+/// `budget` bytes of `pixel_bytes` a pixel (one row at least), with
+/// `halo` rows either side; one band, the film, where that is all of it
+/// or the dump's order is not declared (then each band would scan every
+/// record).
+pub fn bands(h: &Header, pixel_bytes: usize, budget: usize, halo: usize) -> Vec<Band> {
+    let (w, ht, frames) = (h.width as usize, h.height as usize, h.frames as usize);
+    let rows = (budget / (w * pixel_bytes).max(1)).max(1);
+    if rows >= ht || h.order == Order::Unspecified {
+        let all = 0..w * ht * frames;
+        let own = 0..all.len();
+        return vec![Band {
+            header: h.clone(),
+            pixels: all,
+            own,
+        }];
+    }
+    let mut bands = Vec::new();
+    for frame in 0..frames {
+        for y0 in (0..ht).step_by(rows) {
+            let y1 = (y0 + rows).min(ht);
+            let (from, to) = (y0.saturating_sub(halo), (y1 + halo).min(ht));
+            let first = (frame * ht + from) * w;
+            bands.push(Band {
+                header: Header {
+                    height: (to - from) as u32,
+                    frames: 1,
+                    ..h.clone()
+                },
+                pixels: first..first + (to - from) * w,
+                own: (y0 - from) * w..(y1 - from) * w,
+            });
+        }
+    }
+    bands
+}
+
 /// [`fold`] of a dump that declares pixel- or pass-major order and holds
 /// exactly its film's samples, so that a record's place says its pixel
 /// and sample: pixel-major, record p·spp + s is sample s of pixel p
@@ -86,6 +166,7 @@ pub fn fold_colours<A: Default + Clone + Send, T>(
 fn in_place<A: Default + Clone + Send, T>(
     records: &[Record],
     h: &Header,
+    film: Range<usize>,
     parallel: bool,
     tile: usize,
     colour: &(impl Fn(usize, &Record) -> Option<T> + Sync),
@@ -102,7 +183,7 @@ fn in_place<A: Default + Clone + Send, T>(
         return None;
     }
     let misplaced = AtomicBool::new(false);
-    let mut acc = vec![A::default(); pixels * frames];
+    let mut acc = vec![A::default(); film.len()];
     let fill = |(first, acc): (usize, &mut [A])| {
         let (frame, p0, n) = (first / pixels, first % pixels, acc.len());
         // Pixel `first + j`'s sample at record `rec`; false if it is not
@@ -133,16 +214,14 @@ fn in_place<A: Default + Clone + Send, T>(
         }
     };
     // Tiles within a frame, so that each is one run a pass.
-    let tiles = acc
-        .chunks_mut(pixels.max(1))
-        .flat_map(|frame| frame.chunks_mut(tile));
-    let tiles: Vec<(usize, &mut [A])> = tiles
-        .scan(0, |start, t| {
-            let first = *start;
-            *start += t.len();
-            Some((first, t))
-        })
-        .collect();
+    let mut tiles: Vec<(usize, &mut [A])> = Vec::new();
+    let (mut first, mut rest) = (film.start, &mut acc[..]);
+    while !rest.is_empty() {
+        let len = rest.len().min(tile).min(pixels - first % pixels);
+        let (t, tail) = rest.split_at_mut(len);
+        tiles.push((first, t));
+        (first, rest) = (first + len, tail);
+    }
     if parallel {
         tiles.into_par_iter().for_each(fill);
     } else {
@@ -216,7 +295,8 @@ mod tests {
             let push = |a: &mut Vec<usize>, c: [f64; 3]| a.push(c[0] as usize);
             let colour = |i: usize, r: &Record| keep(i).then_some([r.r as f64, 0.0, 0.0]);
             for tile in [1, 3, 8, 35, 1000] {
-                let got = in_place(&named, &h, bands > 1, tile, &colour, &push);
+                let film = 0..h.pixels() * 2;
+                let got = in_place(&named, &h, film, bands > 1, tile, &colour, &push);
                 let holds = order != Order::Unspecified && !misplace;
                 assert_eq!(
                     got.is_some(),

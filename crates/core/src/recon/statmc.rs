@@ -35,8 +35,9 @@
 //! averaging with its neighbours. An addition to Sakai et al.
 //! (docs/RESULTS.md, "The guided image").
 
+use super::Image;
 use super::confidence::Moments;
-use super::{Image, per_pixel};
+use super::per_pixel;
 use crate::dump::{Header, Record};
 use crate::par::prelude::*;
 
@@ -281,32 +282,45 @@ pub fn denoise(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool + Sy
 /// which it no longer needs.
 pub(crate) struct Window {
     fields: Fields,
-    kernel: Kernel,
 }
 
 impl Window {
     pub(crate) fn new<S: AsRef<Stats> + Sync>(stats: &[S], h: &Header) -> Window {
         let (w, ht) = (h.width as usize, h.height as usize);
         Window {
-            kernel: Kernel::new(stats.iter().map(|s| s.as_ref().x.n).max().unwrap_or(0)),
             fields: Fields::new(stats, w, ht),
         }
     }
 
     /// The denoised image.
     pub(crate) fn denoise(&self, h: &Header) -> Image {
-        window(&self.fields, &self.kernel, h)
+        let mut img = Image::for_header(h);
+        self.denoise_into(h, 0, &mut img.data);
+        img
+    }
+
+    /// The denoised pixels of the film `h` that `out` holds, from pixel
+    /// `first` (both whole rows) on: a band's own rows of the window made
+    /// from the band's statistics with [`HALO`] rows either side are the
+    /// whole film's.
+    pub(crate) fn denoise_into(&self, h: &Header, first: usize, out: &mut [[f64; 3]]) {
+        let kernel = Kernel::new(self.fields.n.iter().copied().max().unwrap_or(0));
+        window(&self.fields, &kernel, h, first, out);
     }
 }
 
-/// Every pixel's mean of its window's compatible pixels.
-fn window(fields: &Fields, kernel: &Kernel, h: &Header) -> Image {
+/// Rows either side of a pixel that its window reads, with the 3 × 3
+/// neighbourhoods of [`spread_limits`] at the window's edge.
+pub(crate) const HALO: usize = RADIUS + 1;
+
+/// The mean of its window's compatible pixels of each pixel `out` holds,
+/// from pixel `first` (whole rows) on.
+fn window(fields: &Fields, kernel: &Kernel, h: &Header, first: usize, out: &mut [[f64; 3]]) {
     let (w, ht) = (h.width as usize, h.height as usize);
-    let mut img = Image::for_header(h);
-    img.data
-        .par_chunks_mut(w.max(1))
+    out.par_chunks_mut(w.max(1))
         .enumerate()
-        .for_each(|(row, out)| {
+        .for_each(|(r, out)| {
+            let row = first / w.max(1) + r;
             let (base, y) = ((row / ht) * w * ht, row % ht);
             for (r, out) in out.chunks_mut(RUN).enumerate() {
                 let xs = r * RUN..r * RUN + out.len();
@@ -314,7 +328,6 @@ fn window(fields: &Fields, kernel: &Kernel, h: &Header) -> Image {
                 window_run(fields, kernel, &run, out);
             }
         });
-    img
 }
 
 /// [`Stats`]' update: in AVX2 where the CPU has it (the same bits).
@@ -751,7 +764,9 @@ mod tests {
             spread: vec![0.0; px],
             limit: vec![f64::INFINITY; px],
         };
-        let got = window(&f, &k, &test_header(w as u32, ht as u32));
+        let h = test_header(w as u32, ht as u32);
+        let mut got = Image::for_header(&h);
+        window(&f, &k, &h, 0, &mut got.data);
         let want = denoise_per_pixel(&f, &k, w, ht);
         for (px, (got, want)) in got.data.iter().zip(&want).enumerate() {
             assert_eq!(got.map(f64::to_bits), want.map(f64::to_bits), "pixel {px}");

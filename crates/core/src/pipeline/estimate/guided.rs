@@ -10,6 +10,9 @@ use crate::density::Decision;
 use crate::imagespace::{self, oidn::OidnError};
 use crate::par::prelude::*;
 use crate::recon::confidence::{self, Interval, Moments};
+use crate::recon::held_out::{Half, HalfFold};
+use crate::recon::per_pixel::Band;
+use crate::recon::statmc::Stats;
 use crate::recon::{Image, energy, guided, held_out, statmc};
 
 impl Estimators<'_, '_> {
@@ -73,41 +76,70 @@ impl Estimators<'_, '_> {
         if !any_white {
             return Ok(());
         }
-        let (g0, a0) = make(false)?;
-        let (g1, a1) = make(true)?;
+        let half = |second| make(second).map(|(image, all)| Half::new(image, all));
+        let first = half(false)?;
+        let second = half(true)?;
         let (accepted, _) = self.accepted_interval();
-        held_out::prefer_mean(g, all, &accepted.count, [&g0, &g1], [&a0, &a1], white);
+        held_out::prefer_mean(g, all, &accepted.count, [&first, &second], white);
         Ok(())
     }
 
     /// One half's folds of its samples and of its accepted ones
-    /// ([`held_out::fold_half`]).
+    /// ([`held_out::fold_half`]), band by band of the film
+    /// ([`held_out::bands`]): `each(band, folds)` for each.
     fn fold_half<S: Default + Clone + Send>(
         &self,
         second: bool,
+        halo: usize,
         add: impl Fn(&mut S, [f64; 3]) + Sync,
-    ) -> Vec<held_out::HalfFold<S>> {
+        mut each: impl FnMut(&Band, &[HalfFold<S>]),
+    ) {
         let decisions = self
             .decisions
             .expect("an image that needs the decisions is made with them");
         let (records, h) = (self.shared.records, self.shared.header);
-        held_out::fold_half(
-            records,
-            h,
-            second,
-            |i| Decision::accepted(decisions[i]),
-            add,
-        )
+        let accepted = |i| Decision::accepted(decisions[i]);
+        for band in held_out::bands::<S>(h, halo) {
+            let pixels = band.pixels.clone();
+            each(
+                &band,
+                &held_out::fold_half(records, h, pixels, second, accepted, &add),
+            );
+        }
+    }
+
+    /// One half's intervals of its samples and of its accepted ones, with
+    /// `also(band, folds)` given each band's folds (`halo` rows either
+    /// side, one at least).
+    fn half_intervals<S: Default + Clone + Send>(
+        &self,
+        second: bool,
+        halo: usize,
+        add: impl Fn(&mut S, [f64; 3]) + Sync,
+        accepted_moments: impl Fn(&HalfFold<S>) -> &Moments,
+        mut also: impl FnMut(&Band, &[HalfFold<S>]),
+    ) -> (Interval, Interval) {
+        let (h, guide_z) = (self.shared.header, self.config.guide_z);
+        let mut all = Interval::empty(h, confidence::Z);
+        let mut accepted = Interval::empty(h, guide_z);
+        self.fold_half(second, halo, add, |band, folds| {
+            let bh = &band.header;
+            all.put(
+                band,
+                &confidence::from_moments_of(folds, |f| &f.all, bh, confidence::Z),
+            );
+            let a = confidence::from_moments_of(folds, &accepted_moments, bh, guide_z);
+            accepted.put(band, &a);
+            also(band, folds);
+        });
+        (all, accepted)
     }
 
     /// `guided_oidn`'s image made from one half's samples alone, and the
     /// half's intervals.
     fn guided_oidn_of_half(&self, second: bool) -> Result<(Image, Interval), OidnError> {
-        let h = self.shared.header;
-        let folds = self.fold_half(second, Moments::add);
-        let all = confidence::from_moments_of(&folds, |f| &f.all, h, confidence::Z);
-        let accepted = confidence::from_moments_of(&folds, |f| &f.accepted, h, self.config.guide_z);
-        drop(folds);
+        let (all, accepted) =
+            self.half_intervals(second, 1, Moments::add, |f| &f.accepted, |_, _| {});
         let d = imagespace::oidn::denoise(&all.centre, &all.count, self.aux)?;
         let white = 1.0 / self.config.exposure;
         Ok((guided::guide(&d.image, &accepted, &all, white), all))
@@ -127,6 +159,12 @@ impl Estimators<'_, '_> {
     ) -> Image {
         let with_energy =
             energy::energy_aware(denoised, removed, occupancy, self.config.energy_sigma);
+        self.guided_statmc_of(with_energy, accepted, all)
+    }
+
+    /// [`Self::guided_statmc`] of statmc's image with the removed energy
+    /// spread back.
+    fn guided_statmc_of(&self, with_energy: Image, accepted: &Interval, all: &Interval) -> Image {
         let white = 1.0 / self.config.exposure;
         let mut g = guided::guide(&with_energy, accepted, all, white);
         drop(with_energy);
@@ -139,23 +177,33 @@ impl Estimators<'_, '_> {
     /// (the half's mean where it has none: no median fallback).
     fn guided_of_half(&self, second: bool) -> (Image, Interval) {
         let h = self.shared.header;
-        let folds = self.fold_half(second, statmc::stats_adder());
-        let all = confidence::from_moments_of(&folds, |f| &f.all, h, confidence::Z);
-        let accepted =
-            confidence::from_moments_of(&folds, |f| f.accepted.as_ref(), h, self.config.guide_z);
-        let window = statmc::Window::new(&folds, h);
-        drop(folds);
-        let denoised = window.denoise(h);
-        drop(window);
-        let mut filtered = accepted.centre.clone();
-        for (px, f) in filtered.data.iter_mut().enumerate() {
-            if accepted.count[px] == 0 {
-                *f = all.centre.data[px];
-            }
+        let mut denoised = Image::for_header(h);
+        // statmc's window of each band's own rows, from the band's folds.
+        let denoise = |band: &Band, folds: &[HalfFold<Stats>]| {
+            let first = band.own.start;
+            let window = statmc::Window::new(folds, &band.header);
+            window.denoise_into(&band.header, first, band.own_of(&mut denoised.data));
+        };
+        let add = statmc::stats_adder();
+        let (all, accepted) =
+            self.half_intervals(second, statmc::HALO, add, |f| f.accepted.as_ref(), denoise);
+        let mut removed = all.centre.clone();
+        for (px, r) in removed.data.iter_mut().enumerate() {
+            let filtered = match accepted.count[px] {
+                0 => all.centre.data[px],
+                _ => accepted.centre.data[px],
+            };
+            (0..3).for_each(|c| r[c] -= filtered[c]);
         }
-        let removed = energy::removed(&all.centre, &filtered);
-        drop(filtered);
-        let g = self.guided_statmc(&denoised, &removed, &all.count, &accepted, &all);
+        let mut with_energy = denoised;
+        energy::spread_into(
+            &mut with_energy,
+            &removed,
+            &all.count,
+            self.config.energy_sigma,
+        );
+        drop(removed);
+        let g = self.guided_statmc_of(with_energy, &accepted, &all);
         (g, all)
     }
 }
