@@ -10,8 +10,10 @@ half stands for G_a and G_b. Each variant picks per pixel the whole dump's
 mean or its recommended image, and is scored like fidelity_table.py:
 linear RMS, RMS_display, FLIP and HDR-FLIP (NVIDIA's flip_evaluator)
 against the smaller of the mean's and OIDN(mean)'s (KEY=guided: the
-mean's; display error against OIDN's). Prints the counts at the targets
-and the geometric means. The Rust rule's guard for pixels holding a
+mean's; display error against OIDN's). Variants also decide every pixel
+in display space (the half means' difference standing for their error),
+or blend the image a fixed fraction of the way to the mean everywhere.
+Prints the counts at the targets and the geometric means. The Rust rule's guard for pixels holding a
 rejected sample is not modelled here.
 
 Needs the Python module and OIDN (README), flip-evaluator, and OpenEXR for
@@ -41,7 +43,12 @@ VARIANTS = [
     ("white, whole film", True, "var", 10**6, None),
     ("white, 17 x 17, t-test z = 1", True, "var", 8, 1.0),
     ("white, 17 x 17, no s2 (half difference)", True, "diff", 8, None),
+    ("all pixels, display-space half difference, 7 x 7", False, "display diff", 3, None),
+    ("all pixels, display-space half difference, 17 x 17", False, "display diff", 8, None),
+    ("all pixels, display-space half difference, 33 x 33", False, "display diff", 16, None),
 ]
+# Fractions of the way from the image to the mean, everywhere.
+BLENDS = [0.25, 0.5]
 
 
 def rgb(path):
@@ -141,8 +148,13 @@ def main(folder):
         bad = ~(np.isfinite(se2[0]).all(-1) & np.isfinite(se2[1]).all(-1))
         v = [np.where(np.isfinite(s), s, 0) for s in se2]
         held = ((g[0] - x[1]) ** 2 + (g[1] - x[0]) ** 2) / 2
+        # In display space the half means' difference stands for their
+        # error (no variance passes through the display transform).
+        t = lambda a: display(a, e).astype(np.float64)
+        shown = ((t(g[0]) - t(x[1])) ** 2 + (t(g[1]) - t(x[0])) ** 2) / 2
         delta = {"var": (held - v[0] - v[1]).sum(-1),
-                 "diff": (held - (x[0] - x[1]) ** 2).sum(-1)}
+                 "diff": (held - (x[0] - x[1]) ** 2).sum(-1),
+                 "display diff": (shown - (t(x[0]) - t(x[1])) ** 2).sum(-1)}
         X, G, O = (full.images[k][0] for k in ("mean", KEY, "oidn"))
         base = metrics(X, ref, e), metrics(O, ref, e)
         white = (G >= 1 / e).all(-1) & (X >= 1 / e).all(-1)
@@ -155,6 +167,8 @@ def main(folder):
             return [s[0] / low[0], s[1] / base[1][1], s[2] / low[2], s[3] / low[3]]
 
         scores["shipped without halves"].append(score(G))
+        for a in BLENDS:
+            scores.setdefault(f"{a} of the way to the mean, everywhere", []).append(score(G + a * (X - G)))
         for name, only_white, estimate, r, z in VARIANTS:
             decided = ~bad & (white if only_white else True)
             d = np.where(decided, delta[estimate], 0.0)
@@ -174,7 +188,7 @@ def main(folder):
         r = np.array(rows)
         at = [int((r[:, i] <= target[i] + 1e-12).sum()) for i in range(4)]
         geo = np.exp(np.log(r).mean(0))
-        print(f"  {name:42s} {at} of {len(r)}   {' '.join(f'{g:.3f}' for g in geo)}")
+        print(f"  {name:52s} {at} of {len(r)}   {' '.join(f'{g:.3f}' for g in geo)}")
 
 
 if __name__ == "__main__":
