@@ -15,15 +15,16 @@
 //! variance is half its half's, and a denoiser's bias is not, so it leans
 //! towards the denoiser.
 //!
-//! Only pixels the display shows as white on every channel, in both G and
-//! x̄, are decided: there the two look the same and the linear error is the
+//! Only what the display shows as white in both G and x̄ is decided (whole
+//! pixels white on every channel, or each white channel on its own:
+//! [`Whites`]): there the two look the same and the linear error is the
 //! only one, which the estimate measures. Elsewhere a choice of the noisy
 //! mean would be seen.
 
+use super::Image;
 use super::confidence::{Interval, Moments};
 use super::per_pixel::{self, Band};
 use super::statmc::Stats;
-use super::{Image, guided};
 use crate::dump::{Header, Record};
 use crate::par::prelude::*;
 
@@ -114,51 +115,83 @@ impl Half {
     }
 }
 
+/// What the halves decide: where the display shows both G and x̄ as white,
+/// it cannot tell them apart, and only the linear error differs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Whites {
+    /// Pixels white on every channel, as a whole (the sum of the channels'
+    /// estimates): `guided_oidn`.
+    Pixels,
+    /// Each channel white in both, on its own (a coloured highlight's
+    /// saturated channel too): `guided`, whose statmc window averages such
+    /// a channel with its neighbours (docs/RESULTS.md, "The guided image").
+    Channels,
+}
+
+impl Whites {
+    /// Which channels of a pixel are decided, G's value `g` and the mean
+    /// `x` (made from two samples or more) given.
+    pub fn shown(self, g: &[f64; 3], x: &[f64; 3], white: f64) -> [bool; 3] {
+        let each: [bool; 3] = std::array::from_fn(|c| g[c] >= white && x[c] >= white);
+        match self {
+            Whites::Pixels => [each.iter().all(|&w| w); 3],
+            Whites::Channels => each,
+        }
+    }
+}
+
 /// `g` (made from all the samples, with `all` their intervals) with every
 /// white pixel set to its mean x̄ where the window's held-out estimate says
 /// x̄'s squared error is the smaller; a pixel holding a rejected sample
 /// (`accepted[px]` below its count) only where its own estimate says so
 /// too, so that no neighbour's evidence restores an outlier the filter
 /// rejected. `halves[k]` is half k's [`Half`]; `white` the linear value
-/// the display shows as white.
+/// the display shows as white; `whites` what is decided, channel by
+/// channel (a white pixel's channels together under [`Whites::Pixels`]).
 pub fn prefer_mean(
     g: &mut Image,
     all: &Interval,
     accepted: &[u32],
     halves: [&Half; 2],
     white: f64,
+    whites: Whites,
 ) {
     let (w, ht) = (g.width, g.height);
-    // Per pixel: MSE(G) − MSE(x̄), estimated from the halves (None where
-    // the pixel is not decided).
-    let delta: Vec<Option<f64>> = (0..g.data.len())
+    // Per pixel and channel: MSE(G) − MSE(x̄), estimated from the halves
+    // (None where the channel is not decided; a non-finite estimate
+    // decides nothing, nor its window's sum).
+    let delta: Vec<[Option<f64>; 3]> = (0..g.data.len())
         .into_par_iter()
         .map(|px| {
-            let decided = guided::shown_white(all, px, &g.data[px], white)
-                && halves.iter().all(|h| h.count[px] >= 2);
-            if !decided {
-                return None;
-            }
+            let counted = all.count[px] >= 2 && halves.iter().all(|h| h.count[px] >= 2);
             let [a, b] = halves.map(|h| (h.mean.data[px], h.own_se.data[px]));
             let [ga, gb] = halves.map(|h| h.image.data[px]);
-            (0..3)
-                .map(|c| {
-                    let (va, vb) = (a.1[c] * a.1[c], b.1[c] * b.1[c]);
-                    let held = ((ga[c] - b.0[c]).powi(2) + (gb[c] - a.0[c]).powi(2)) / 2.0;
-                    held - va - vb
-                })
-                .sum::<f64>()
-                .into()
+            let shown = whites.shown(&g.data[px], &all.centre.data[px], white);
+            let d: [Option<f64>; 3] = std::array::from_fn(|c| {
+                if !(counted && shown[c]) {
+                    return None;
+                }
+                let (va, vb) = (a.1[c] * a.1[c], b.1[c] * b.1[c]);
+                let held = ((ga[c] - b.0[c]).powi(2) + (gb[c] - a.0[c]).powi(2)) / 2.0;
+                Some(held - va - vb)
+            });
+            let finite = |d: Option<f64>| d.filter(|d| d.is_finite());
+            match whites {
+                Whites::Channels => d.map(finite),
+                Whites::Pixels => [finite(d.into_iter().sum::<Option<f64>>()); 3],
+            }
         })
-        // A non-finite estimate decides nothing (nor its window's sum).
-        .map(|d: Option<f64>| d.filter(|d| d.is_finite()))
         .collect();
-    let flat: Vec<f64> = delta.iter().map(|d| d.unwrap_or(0.0)).collect();
-    let sums = window_sums(&flat, w, ht, RADIUS);
+    let sums: [Vec<f64>; 3] = std::array::from_fn(|c| {
+        let flat: Vec<f64> = delta.iter().map(|d| d[c].unwrap_or(0.0)).collect();
+        window_sums(&flat, w, ht, RADIUS)
+    });
     g.data.par_iter_mut().enumerate().for_each(|(px, v)| {
         let own = |d: f64| accepted[px] == all.count[px] || d > 0.0;
-        if delta[px].is_some_and(own) && sums[px] > 0.0 {
-            *v = all.centre.data[px];
+        for c in 0..3 {
+            if delta[px][c].is_some_and(own) && sums[c][px] > 0.0 {
+                v[c] = all.centre.data[px][c];
+            }
         }
     });
 }
@@ -345,7 +378,14 @@ mod tests {
             let all = interval(10.0, 1.0, 2 * n);
             let a = halves.map(|(m, se)| Half::new(one(g_halves), interval(m, se, n)));
             let mut out = one(g);
-            prefer_mean(&mut out, &all, &all.count, [&a[0], &a[1]], white);
+            prefer_mean(
+                &mut out,
+                &all,
+                &all.count,
+                [&a[0], &a[1]],
+                white,
+                Whites::Pixels,
+            );
             out.data[0][0]
         };
         // ((20 − 11)² + (20 − 9)²)/2 − 1 − 1 = 99 > 0: the mean.
@@ -385,13 +425,68 @@ mod tests {
         .map(|a| Half::new(two([20.0, 10.0]), a));
         let decide = |accepted: [u32; 2]| {
             let mut out = two([20.0, 12.0]);
-            prefer_mean(&mut out, &all, &accepted, [&halves[0], &halves[1]], 1.0);
+            let halves = [&halves[0], &halves[1]];
+            prefer_mean(&mut out, &all, &accepted, halves, 1.0, Whites::Pixels);
             [out.data[0][0], out.data[1][0]]
         };
         assert_eq!(decide([16, 16]), [10.0, 10.0]);
         assert_eq!(decide([16, 15]), [10.0, 12.0]);
         // Its own strong estimate restores a pixel with a rejected sample.
         assert_eq!(decide([15, 16]), [10.0, 10.0]);
+    }
+
+    /// A coloured highlight white on its blue channel alone: by channels
+    /// the blue takes its mean and red and green keep G; by pixels
+    /// nothing is decided. By pixels a white pixel's channels go together,
+    /// on the sum of their estimates.
+    #[test]
+    fn white_channels_are_decided_alone_or_with_their_pixel() {
+        let pixel = |v: [f64; 3]| Image {
+            data: vec![v],
+            ..one(0.0)
+        };
+        let interval = |centre: [f64; 3], n: u32| Interval {
+            centre: pixel(centre),
+            half_width: pixel([0.3; 3]),
+            count: vec![n],
+            own_se: pixel([0.1; 3]),
+            z: 3.0,
+        };
+        // Each half's image lies about 10 from the other half's blue mean.
+        let decide = |x: [f64; 3], halves: [[f64; 3]; 2], g: [f64; 3], whites| {
+            let all = interval(x, 16);
+            let halves = halves.map(|m| Half::new(pixel([x[0], x[1], 20.0]), interval(m, 8)));
+            let mut out = pixel(g);
+            prefer_mean(
+                &mut out,
+                &all,
+                &all.count,
+                [&halves[0], &halves[1]],
+                1.0,
+                whites,
+            );
+            out.data[0]
+        };
+        let coloured = [[0.4, 0.4, 9.9], [0.6, 0.6, 10.1]];
+        let x = [0.5, 0.5, 10.0];
+        assert_eq!(
+            decide(x, coloured, [0.7, 0.7, 20.0], Whites::Channels),
+            [0.7, 0.7, 10.0]
+        );
+        assert_eq!(
+            decide(x, coloured, [0.7, 0.7, 20.0], Whites::Pixels),
+            [0.7, 0.7, 20.0]
+        );
+        assert_eq!(
+            decide(x, coloured, [0.7, 1.0, 20.0], Whites::Channels),
+            [0.7, 1.0, 10.0]
+        );
+        // White on every channel: red's and green's estimates (−0.01 each)
+        // follow the blue's (99.99) under Pixels, and keep G under Channels.
+        let (x, grey) = ([10.0; 3], [[9.9; 3], [10.1; 3]]);
+        let g = [10.05, 10.05, 20.0];
+        assert_eq!(decide(x, grey, g, Whites::Pixels), [10.0; 3]);
+        assert_eq!(decide(x, grey, g, Whites::Channels), [10.05, 10.05, 10.0]);
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! The guided images (docs/filter.md F10): a denoiser's image steered by
 //! the filter's evidence, `guided` over statmc and `guided_oidn` over OIDN,
-//! with their white pixels decided by held-out halves of the samples
+//! with what is white decided by held-out halves of the samples
 //! ([`held_out`]): each image made again from each half alone.
 
 use std::sync::Arc;
@@ -10,7 +10,7 @@ use crate::density::Decision;
 use crate::imagespace::{self, oidn::OidnError};
 use crate::par::prelude::*;
 use crate::recon::confidence::{self, Interval, Moments};
-use crate::recon::held_out::{Half, HalfFold};
+use crate::recon::held_out::{Half, HalfFold, Whites};
 use crate::recon::per_pixel::Band;
 use crate::recon::statmc::Stats;
 use crate::recon::{Image, energy, guided, held_out, statmc};
@@ -25,7 +25,7 @@ impl Estimators<'_, '_> {
         let (mut out, t) =
             timed(|| self.guided_statmc(denoised, removed, occupancy, accepted, all));
         let (_, t2) = timed(|| {
-            self.held_out(&mut out, |second| {
+            self.held_out(&mut out, Whites::Channels, |second| {
                 Ok::<_, std::convert::Infallible>(self.guided_of_half(second))
             })
         });
@@ -37,7 +37,7 @@ impl Estimators<'_, '_> {
         let (denoised, s) = self.oidn_mean()?;
         let (mut out, s) = self.guided(denoised, *s);
         let half = |second| self.guided_oidn_of_half(second);
-        let (decided, t) = timed(|| self.held_out(&mut out, half));
+        let (decided, t) = timed(|| self.held_out(&mut out, Whites::Pixels, half));
         decided?;
         Ok((Arc::new(out), s + t))
     }
@@ -55,13 +55,14 @@ impl Estimators<'_, '_> {
         )
     }
 
-    /// `g`, a guided image, with its white pixels decided by the held-out
+    /// `g`, a guided image, with its `whites` decided by the held-out
     /// halves ([`held_out`]): `make(second)` makes the same image from one
     /// half's samples alone, with that half's intervals. Nothing is made
-    /// where no pixel is white.
+    /// where nothing is white.
     fn held_out<E>(
         &self,
         g: &mut Image,
+        whites: Whites,
         make: impl Fn(bool) -> Result<(Image, Interval), E>,
     ) -> Result<(), E> {
         if !self.config.held_out {
@@ -70,9 +71,10 @@ impl Estimators<'_, '_> {
         let (all, _) = self.shared.interval();
         let white = 1.0 / self.config.exposure;
         // A pixel is decided with two samples in each half.
-        let any_white = (0..g.data.len())
-            .into_par_iter()
-            .any(|px| all.count[px] >= 4 && guided::shown_white(all, px, &g.data[px], white));
+        let any_white = (0..g.data.len()).into_par_iter().any(|px| {
+            let shown = whites.shown(&g.data[px], &all.centre.data[px], white);
+            all.count[px] >= 4 && shown.contains(&true)
+        });
         if !any_white {
             return Ok(());
         }
@@ -80,7 +82,7 @@ impl Estimators<'_, '_> {
         let first = half(false)?;
         let second = half(true)?;
         let (accepted, _) = self.accepted_interval();
-        held_out::prefer_mean(g, all, &accepted.count, [&first, &second], white);
+        held_out::prefer_mean(g, all, &accepted.count, [&first, &second], white, whites);
         Ok(())
     }
 
