@@ -20,7 +20,7 @@
 //! when a pixel's samples are large and nearly equal (a light's 60 ± 10⁻⁶).
 
 use super::Image;
-use super::per_pixel::{self, Band};
+use super::per_pixel::{self, RowBand};
 use crate::dump::{Header, Record};
 use crate::par::prelude::*;
 
@@ -58,7 +58,7 @@ impl Interval {
     }
 
     /// `band`'s own pixels' intervals, made from its folds, put in place.
-    pub(crate) fn put(&mut self, band: &Band, from: &Interval) {
+    pub(crate) fn put(&mut self, band: &RowBand, from: &Interval) {
         band.put(&mut self.centre.data, &from.centre.data);
         band.put(&mut self.half_width.data, &from.half_width.data);
         band.put(&mut self.count, &from.count);

@@ -25,8 +25,14 @@ use crate::par::prelude::*;
 
 /// Per pixel, `mean − filtered`.
 pub fn removed(mean: &Image, filtered: &Image) -> Image {
+    removed_by(mean, |px| filtered.data[px])
+}
+
+/// Per pixel px, `mean − filtered(px)`.
+pub fn removed_by(mean: &Image, filtered: impl Fn(usize) -> [f64; 3]) -> Image {
     let mut out = mean.clone();
-    for (o, f) in out.data.iter_mut().zip(&filtered.data) {
+    for (px, o) in out.data.iter_mut().enumerate() {
+        let f = filtered(px);
         for c in 0..3 {
             o[c] -= f[c];
         }

@@ -23,7 +23,7 @@
 
 use super::Image;
 use super::confidence::{Interval, Moments};
-use super::per_pixel::{self, Band};
+use super::per_pixel::{self, RowBand};
 use super::statmc::Stats;
 use crate::dump::{Header, Record};
 use crate::par::prelude::*;
@@ -48,30 +48,34 @@ impl AsRef<Stats> for HalfFold<Stats> {
     }
 }
 
-/// Bytes of one band's [`HalfFold`]s ([`per_pixel::bands`]): a half's
-/// intervals and statmc's window are made band by band, and the folds of
-/// the whole film were a third of a 1080p frame's memory.
+/// Bytes of one band's [`HalfFold`]s: a half's intervals and statmc's
+/// window are made band by band ([`fold_half`]), where the folds of the
+/// whole film were 348 MB of a 1080p frame (docs/BENCHMARKS.md).
 pub(crate) const BAND_BYTES: usize = 32 << 20;
 
-/// The film's bands for [`fold_half`] of `S`, with `halo` rows either
-/// side: what is made from a band's folds reads that far (one row for the
-/// intervals' 3 × 3 neighbourhoods).
-pub(crate) fn bands<S>(h: &Header, halo: usize) -> Vec<Band> {
-    per_pixel::bands(h, size_of::<HalfFold<S>>(), BAND_BYTES, halo)
+/// The film's bands for [`fold_half`] of `S`, of about `budget` bytes of
+/// folds ([`BAND_BYTES`]), with `halo` rows either side: what is made
+/// from a band's folds reads that far (one row for the intervals' 3 × 3
+/// neighbourhoods).
+pub(crate) fn bands<S>(h: &Header, halo: usize, budget: usize) -> Vec<RowBand> {
+    per_pixel::row_bands(h, size_of::<HalfFold<S>>(), budget, halo)
 }
 
-/// The [`HalfFold`] of each of the film's pixels `pixels` of its first
-/// half (`second` false: the even ordinals among its valid samples in file
-/// order) or its second (the odd ones), in one pass; `accepted(i)` says
-/// whether record i was accepted, `add` is `S`'s update.
+/// Each band's [`HalfFold`]s of its pixels' first half (`second` false:
+/// the even ordinals among a pixel's valid samples in file order) or
+/// second (the odd ones), given to `each(band, folds)` in turn, or the
+/// film's as one band where the dump cannot be read in place
+/// ([`per_pixel::fold_in_bands`]); `accepted(i)` says whether record i
+/// was accepted, `add` is `S`'s update.
 pub(crate) fn fold_half<S: Default + Clone + Send>(
     records: &[Record],
     h: &Header,
-    pixels: std::ops::Range<usize>,
+    bands: &[RowBand],
     second: bool,
     accepted: impl Fn(usize) -> bool + Sync,
     add: impl Fn(&mut S, [f64; 3]) + Sync,
-) -> Vec<HalfFold<S>> {
+    each: impl FnMut(&RowBand, &[HalfFold<S>]),
+) {
     let jobs = crate::par::current_num_threads();
     let item = |i: usize, r: &Record| Some(([r.r as f64, r.g as f64, r.b as f64], accepted(i)));
     let fold = |f: &mut HalfFold<S>, (x, acc): ([f64; 3], bool)| {
@@ -84,7 +88,7 @@ pub(crate) fn fold_half<S: Default + Clone + Send>(
             }
         }
     };
-    per_pixel::fold_colours_in(records, h, pixels, jobs, item, fold)
+    per_pixel::fold_in_bands(records, h, bands, jobs, item, fold, each)
 }
 
 /// What the decision reads of one half: the image made from its samples
@@ -224,6 +228,20 @@ mod tests {
     use super::*;
     use crate::recon::test_header as header;
 
+    /// Every pixel's [`HalfFold`], the film folded as one band.
+    fn whole<S: Default + Clone + Send>(
+        records: &[Record],
+        h: &Header,
+        second: bool,
+        accepted: impl Fn(usize) -> bool + Sync,
+        add: impl Fn(&mut S, [f64; 3]) + Sync,
+    ) -> Vec<HalfFold<S>> {
+        let mut film = Vec::new();
+        let keep = |_: &RowBand, folds: &[HalfFold<S>]| film = folds.to_vec();
+        fold_half(records, h, &[RowBand::film(h)], second, accepted, add, keep);
+        film
+    }
+
     /// The halves alternate within each pixel, in file order, and skip
     /// what is not a valid sample; the accepted samples are those of the
     /// half.
@@ -243,8 +261,7 @@ mod tests {
         ];
         let push = |v: &mut Vec<f64>, x: [f64; 3]| v.push(x[0]);
         let all_but_the_last = |i: usize| i != 7;
-        let [first, second] =
-            [false, true].map(|k| fold_half(&records, &h, 0..2, k, all_but_the_last, push));
+        let [first, second] = [false, true].map(|k| whole(&records, &h, k, all_but_the_last, push));
         assert_eq!((first[0].all.n, first[0].all.mean[0]), (2, 2.5));
         assert_eq!((second[0].all.n, second[0].all.mean[0]), (2, 5.0));
         assert_eq!((first[1].all.n, second[1].all.n), (2, 1));
@@ -277,9 +294,8 @@ mod tests {
             let accepted = |i: usize| !i.is_multiple_of(3);
             let push = |v: &mut Vec<f64>, x: [f64; 3]| v.push(x[0]);
             for second in [false, true] {
-                let film = 0..70;
-                let placed = fold_half(&records, &h, film.clone(), second, accepted, push);
-                let scanned = fold_half(&records, &scan, film, second, accepted, push);
+                let placed = whole(&records, &h, second, accepted, push);
+                let scanned = whole(&records, &scan, second, accepted, push);
                 for (a, b) in placed.iter().zip(&scanned) {
                     assert_eq!((a.all.n, a.all.mean), (b.all.n, b.all.mean));
                     assert_eq!(a.accepted, b.accepted);
@@ -296,7 +312,7 @@ mod tests {
     fn bands_make_the_films_intervals_and_window() {
         use crate::dump::Order;
         use crate::recon::confidence::{self, Interval};
-        use crate::recon::statmc;
+        use crate::recon::statmc::{self, Stats};
         use crate::synth::SynthParams;
         for order in [Order::PassMajor, Order::PixelMajor] {
             let synth = SynthParams {
@@ -311,46 +327,48 @@ mod tests {
             };
             let (h, records): (Header, Vec<Record>) = (synth.header(), synth.records().collect());
             let accepted = |i: usize| i % 7 != 3;
-            let film = 0..24 * 40 * 2;
             let add = statmc::stats_adder();
-            let whole = fold_half(&records, &h, film.clone(), true, accepted, add);
-            let interval = confidence::from_moments_of(&whole, |f| &f.all, &h, 3.0);
-            let denoised = statmc::Window::new(&whole, &h).denoise(&h);
+            let film = whole(&records, &h, true, accepted, add);
+            let interval = confidence::from_moments_of(&film, |f| &f.all, &h, 3.0);
+            let denoised = statmc::Window::new(&film, &h).denoise(&h);
 
-            // Bands of 4 rows (24 pixels of one byte each, a budget of 96).
-            let bands = per_pixel::bands(&h, 1, 96, statmc::HALO);
-            assert_eq!(bands.len(), 20);
-            let mut own = vec![0; film.len()];
-            let mut banded = Interval::empty(&h, 3.0);
-            let mut banded_denoised = Image::for_header(&h);
-            for band in &bands {
-                band.own_of(&mut own).iter_mut().for_each(|n| *n += 1);
-                let folds = fold_half(&records, &h, band.pixels.clone(), true, accepted, add);
-                let bh = &band.header;
-                banded.put(
-                    band,
-                    &confidence::from_moments_of(&folds, |f| &f.all, bh, 3.0),
-                );
-                let out = band.own_of(&mut banded_denoised.data);
-                statmc::Window::new(&folds, bh).denoise_into(bh, band.own.start, out);
-            }
-            assert!(own.iter().all(|&n| n == 1));
+            // Bands of 2 rows (a budget of two rows of folds), the halos as
+            // the halves' (one row for the intervals, HALO for the window),
+            // and one row fewer.
+            let budget = 2 * 24 * size_of::<HalfFold<Stats>>();
+            let banded = |halo: usize| {
+                let bands = bands::<Stats>(&h, halo, budget);
+                assert_eq!(bands.len(), 40);
+                let mut own = vec![0; film.len()];
+                let mut banded = Interval::empty(&h, 3.0);
+                let mut banded_denoised = Image::for_header(&h);
+                fold_half(&records, &h, &bands, true, accepted, add, |band, folds| {
+                    band.own_of(&mut own).iter_mut().for_each(|n| *n += 1);
+                    let bh = &band.header;
+                    let i = confidence::from_moments_of(folds, |f| &f.all, bh, 3.0);
+                    banded.put(band, &i);
+                    let out = band.own_of(&mut banded_denoised.data);
+                    statmc::Window::new(folds, bh).denoise_into(bh, band.own.start, out);
+                });
+                assert!(own.iter().all(|&n| n == 1));
+                (banded, banded_denoised)
+            };
             let bits = |img: &Image| -> Vec<u64> {
                 img.data.iter().flatten().map(|v| v.to_bits()).collect()
             };
-            assert_eq!(bits(&banded.centre), bits(&interval.centre));
-            assert_eq!(bits(&banded.half_width), bits(&interval.half_width));
-            assert_eq!(bits(&banded.own_se), bits(&interval.own_se));
-            assert_eq!(banded.count, interval.count);
-            assert_eq!(bits(&banded_denoised), bits(&denoised));
-            // The window reads its halo: without it a band's edge differs.
-            let no_halo = per_pixel::bands(&h, 1, 96, 1);
-            let band = &no_halo[1];
-            let folds = fold_half(&records, &h, band.pixels.clone(), true, accepted, add);
-            let mut out = vec![[0.0; 3]; band.own.len()];
-            let bh = &band.header;
-            statmc::Window::new(&folds, bh).denoise_into(bh, band.own.start, &mut out);
-            assert_ne!(out, band.own_of(&mut denoised.data.clone()).to_vec());
+            let (one_row, _) = banded(1);
+            assert_eq!(bits(&one_row.centre), bits(&interval.centre));
+            assert_eq!(bits(&one_row.half_width), bits(&interval.half_width));
+            assert_eq!(bits(&one_row.own_se), bits(&interval.own_se));
+            assert_eq!(one_row.count, interval.count);
+            let (_, window) = banded(statmc::HALO);
+            assert_eq!(bits(&window), bits(&denoised));
+            // Each reads all its halo: one row fewer and a band's edge
+            // differs.
+            let (no_row, _) = banded(0);
+            assert_ne!(bits(&no_row.half_width), bits(&interval.half_width));
+            let (_, short) = banded(statmc::HALO - 1);
+            assert_ne!(bits(&short), bits(&denoised));
         }
     }
 

@@ -44,29 +44,16 @@ pub fn fold_colours<A: Default + Clone + Send, T>(
     add: impl Fn(&mut A, T) + Sync,
 ) -> Vec<A> {
     let film = 0..h.pixels() * h.frames as usize;
-    fold_colours_in(records, h, film, jobs, colour, add)
-}
-
-/// [`fold_colours`] of the film's pixels `pixels` alone (indices over all
-/// frames), one fold each, in order.
-pub fn fold_colours_in<A: Default + Clone + Send, T>(
-    records: &[Record],
-    h: &Header,
-    pixels: Range<usize>,
-    jobs: usize,
-    colour: impl Fn(usize, &Record) -> Option<T> + Sync,
-    add: impl Fn(&mut A, T) + Sync,
-) -> Vec<A> {
     let tile = (TILE_BYTES / size_of::<A>().max(1)).max(1);
-    if let Some(acc) = in_place(records, h, pixels.clone(), jobs > 1, tile, &colour, &add) {
+    if let Some(acc) = in_place(records, h, film.clone(), jobs > 1, tile, &colour, &add) {
         return acc;
     }
     let width = (h.width as usize).max(1);
-    let mut acc = vec![A::default(); pixels.len()];
-    let bands = jobs.clamp(1, MAX_BANDS);
-    let band = (pixels.len() / width).div_ceil(bands).max(1) * width;
-    acc.par_chunks_mut(band).enumerate().for_each(|(b, acc)| {
-        let first = pixels.start + b * band;
+    let mut acc = vec![A::default(); film.len()];
+    let jobs = jobs.clamp(1, MAX_BANDS);
+    let rows = (film.len() / width).div_ceil(jobs).max(1) * width;
+    acc.par_chunks_mut(rows).enumerate().for_each(|(b, acc)| {
+        let first = b * rows;
         for (i, r) in records.iter().enumerate() {
             if r.validity(h) != Validity::Valid {
                 continue;
@@ -87,13 +74,14 @@ pub fn fold_colours_in<A: Default + Clone + Send, T>(
 }
 
 /// A band of one frame's rows, with up to `halo` rows of the frame either
-/// side: a fold in bands folds one at a time, so that what it derives
-/// from a pixel's neighbourhood (within `halo` rows) is the whole film's,
-/// with the folds of a band of the film in memory rather than all of them.
-pub struct Band {
-    /// The folded rows as a film of their own: the film's width, the
-    /// band's rows with their halo, one frame (the whole film where there
-    /// is one band).
+/// side: [`fold_in_bands`] folds one at a time, so that what is made from
+/// a pixel's neighbourhood (within `halo` rows) is the whole film's, with
+/// the folds of a band of the film in memory rather than all of them.
+pub struct RowBand {
+    /// The folded rows' geometry as a film of their own: the film's width,
+    /// the band's rows with their halo, one frame (the whole film's header
+    /// where the band is the film). Its sample count and order are the
+    /// film's: never a header to fold a dump with.
     pub header: Header,
     /// The film's pixels folded (indices over all frames).
     pub pixels: Range<usize>,
@@ -101,7 +89,17 @@ pub struct Band {
     pub own: Range<usize>,
 }
 
-impl Band {
+impl RowBand {
+    /// The whole film as one band.
+    pub fn film(h: &Header) -> RowBand {
+        let all = 0..h.pixels() * h.frames as usize;
+        RowBand {
+            header: h.clone(),
+            own: all.clone(),
+            pixels: all,
+        }
+    }
+
     /// The band's own pixels of `src` (one per folded pixel) written to
     /// `dst` (one per film pixel).
     pub fn put<T: Copy>(&self, dst: &mut [T], src: &[T]) {
@@ -115,22 +113,15 @@ impl Band {
     }
 }
 
-/// The film in bands of whole rows, each frame apart, that keep about
-/// `budget` bytes of `pixel_bytes` a pixel (one row at least), with
-/// `halo` rows either side; one band, the film, where that is all of it
-/// or the dump's order is not declared (then each band would scan every
-/// record).
-pub fn bands(h: &Header, pixel_bytes: usize, budget: usize, halo: usize) -> Vec<Band> {
+/// The film in bands of whole rows that keep about `budget` bytes of
+/// `pixel_bytes` a pixel (one row at least), each frame apart, with `halo`
+/// rows either side within the frame; one band, the film, where that is
+/// all of it.
+pub fn row_bands(h: &Header, pixel_bytes: usize, budget: usize, halo: usize) -> Vec<RowBand> {
     let (w, ht, frames) = (h.width as usize, h.height as usize, h.frames as usize);
     let rows = (budget / (w * pixel_bytes).max(1)).max(1);
-    if rows >= ht || h.order == Order::Unspecified {
-        let all = 0..w * ht * frames;
-        let own = 0..all.len();
-        return vec![Band {
-            header: h.clone(),
-            pixels: all,
-            own,
-        }];
+    if rows >= ht && frames == 1 {
+        return vec![RowBand::film(h)];
     }
     let mut bands = Vec::new();
     for frame in 0..frames {
@@ -138,7 +129,7 @@ pub fn bands(h: &Header, pixel_bytes: usize, budget: usize, halo: usize) -> Vec<
             let y1 = (y0 + rows).min(ht);
             let (from, to) = (y0.saturating_sub(halo), (y1 + halo).min(ht));
             let first = (frame * ht + from) * w;
-            bands.push(Band {
+            bands.push(RowBand {
                 header: Header {
                     height: (to - from) as u32,
                     frames: 1,
@@ -150,6 +141,45 @@ pub fn bands(h: &Header, pixel_bytes: usize, budget: usize, halo: usize) -> Vec<
         }
     }
     bands
+}
+
+/// [`fold_colours`] band by band: `each(band, folds)` for each of `bands`
+/// in turn with the folds of its pixels. Bands are read in place, which
+/// needs a dump whose declared order holds ([`in_place`]): where one
+/// cannot be, a band before it may have missed a sample lying in its
+/// rows, so the film is folded whole and given as one last band
+/// ([`RowBand::film`]), its every pixel's fold [`fold_colours`]'s.
+pub fn fold_in_bands<A: Default + Clone + Send, T>(
+    records: &[Record],
+    h: &Header,
+    bands: &[RowBand],
+    jobs: usize,
+    colour: impl Fn(usize, &Record) -> Option<T> + Sync,
+    add: impl Fn(&mut A, T) + Sync,
+    mut each: impl FnMut(&RowBand, &[A]),
+) {
+    let tile = (TILE_BYTES / size_of::<A>().max(1)).max(1);
+    if bands.len() > 1 {
+        let placed = bands.iter().all(|band| {
+            let folds = in_place(
+                records,
+                h,
+                band.pixels.clone(),
+                jobs > 1,
+                tile,
+                &colour,
+                &add,
+            );
+            folds.map(|folds| each(band, &folds)).is_some()
+        });
+        if placed {
+            return;
+        }
+    }
+    each(
+        &RowBand::film(h),
+        &fold_colours(records, h, jobs, colour, add),
+    );
 }
 
 /// [`fold`] of a dump that declares pixel- or pass-major order and holds
@@ -306,7 +336,55 @@ mod tests {
                 if let Some(got) = got {
                     assert_eq!(got, serial, "{order}: {bands} jobs, tile {tile}");
                 }
+                // A range of pixels across the frames' edge, in tiles.
+                let part = 10..45;
+                let got = in_place(&named, &h, part.clone(), bands > 1, tile, &colour, &push);
+                if holds {
+                    assert_eq!(got.as_deref(), Some(&serial[part]), "{order}: tile {tile}");
+                }
             }
+        }
+        check_row_bands(
+            &h,
+            &records,
+            &serial,
+            keep,
+            order == Order::Unspecified || misplace,
+        );
+    }
+
+    /// In bands of rows of any size, with any halo, each pixel's fold is
+    /// the serial one: where a band cannot be read in place (`whole`), the
+    /// film is folded whole and given as the last band.
+    fn check_row_bands(
+        h: &Header,
+        records: &[Record],
+        serial: &[Vec<usize>],
+        keep: impl Fn(usize) -> bool + Sync,
+        whole: bool,
+    ) {
+        let named: Vec<Record> = records
+            .iter()
+            .enumerate()
+            .map(|(i, r)| Record { r: i as f32, ..*r })
+            .collect();
+        let push = |a: &mut Vec<usize>, c: [f64; 3]| a.push(c[0] as usize);
+        let colour = |i: usize, r: &Record| keep(i).then_some([r.r as f64, 0.0, 0.0]);
+        // (rows a band, halo, bands): five rows are a frame, one band each.
+        for (rows, halo, count) in [(1, 0, 10), (1, 1, 10), (2, 1, 6), (5, 2, 2)] {
+            let bands = row_bands(h, 1, 7 * rows, halo);
+            assert_eq!(bands.len(), count);
+            let mut got = vec![Vec::new(); serial.len()];
+            let mut last_whole = false;
+            fold_in_bands(&named, h, &bands, 2, colour, push, |band, folds| {
+                let at = band.pixels.start + band.own.start;
+                for (j, f) in folds[band.own.clone()].iter().enumerate() {
+                    got[at + j] = f.clone();
+                }
+                last_whole = band.own.len() == serial.len();
+            });
+            assert_eq!(got, serial, "{rows} rows a band, halo {halo}");
+            assert_eq!(last_whole, whole, "{rows} rows a band, halo {halo}");
         }
     }
 }

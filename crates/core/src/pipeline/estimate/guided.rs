@@ -11,7 +11,7 @@ use crate::imagespace::{self, oidn::OidnError};
 use crate::par::prelude::*;
 use crate::recon::confidence::{self, Interval, Moments};
 use crate::recon::held_out::{Half, HalfFold, Whites};
-use crate::recon::per_pixel::Band;
+use crate::recon::per_pixel::RowBand;
 use crate::recon::statmc::Stats;
 use crate::recon::{Image, energy, guided, held_out, statmc};
 
@@ -86,28 +86,23 @@ impl Estimators<'_, '_> {
         Ok(())
     }
 
-    /// One half's folds of its samples and of its accepted ones
-    /// ([`held_out::fold_half`]), band by band of the film
-    /// ([`held_out::bands`]): `each(band, folds)` for each.
+    /// One half's folds of its samples and of its accepted ones, band by
+    /// band of the film with `halo` rows either side
+    /// ([`held_out::fold_half`]): `each(band, folds)` for each.
     fn fold_half<S: Default + Clone + Send>(
         &self,
         second: bool,
         halo: usize,
         add: impl Fn(&mut S, [f64; 3]) + Sync,
-        mut each: impl FnMut(&Band, &[HalfFold<S>]),
+        each: impl FnMut(&RowBand, &[HalfFold<S>]),
     ) {
         let decisions = self
             .decisions
             .expect("an image that needs the decisions is made with them");
         let (records, h) = (self.shared.records, self.shared.header);
         let accepted = |i| Decision::accepted(decisions[i]);
-        for band in held_out::bands::<S>(h, halo) {
-            let pixels = band.pixels.clone();
-            each(
-                &band,
-                &held_out::fold_half(records, h, pixels, second, accepted, &add),
-            );
-        }
+        let bands = held_out::bands::<S>(h, halo, held_out::BAND_BYTES);
+        held_out::fold_half(records, h, &bands, second, accepted, add, each);
     }
 
     /// One half's intervals of its samples and of its accepted ones, with
@@ -119,7 +114,7 @@ impl Estimators<'_, '_> {
         halo: usize,
         add: impl Fn(&mut S, [f64; 3]) + Sync,
         accepted_moments: impl Fn(&HalfFold<S>) -> &Moments,
-        mut also: impl FnMut(&Band, &[HalfFold<S>]),
+        mut also: impl FnMut(&RowBand, &[HalfFold<S>]),
     ) -> (Interval, Interval) {
         let (h, guide_z) = (self.shared.header, self.config.guide_z);
         let mut all = Interval::empty(h, confidence::Z);
@@ -181,7 +176,7 @@ impl Estimators<'_, '_> {
         let h = self.shared.header;
         let mut denoised = Image::for_header(h);
         // statmc's window of each band's own rows, from the band's folds.
-        let denoise = |band: &Band, folds: &[HalfFold<Stats>]| {
+        let denoise = |band: &RowBand, folds: &[HalfFold<Stats>]| {
             let first = band.own.start;
             let window = statmc::Window::new(folds, &band.header);
             window.denoise_into(&band.header, first, band.own_of(&mut denoised.data));
@@ -189,14 +184,10 @@ impl Estimators<'_, '_> {
         let add = statmc::stats_adder();
         let (all, accepted) =
             self.half_intervals(second, statmc::HALO, add, |f| f.accepted.as_ref(), denoise);
-        let mut removed = all.centre.clone();
-        for (px, r) in removed.data.iter_mut().enumerate() {
-            let filtered = match accepted.count[px] {
-                0 => all.centre.data[px],
-                _ => accepted.centre.data[px],
-            };
-            (0..3).for_each(|c| r[c] -= filtered[c]);
-        }
+        let removed = energy::removed_by(&all.centre, |px| match accepted.count[px] {
+            0 => all.centre.data[px],
+            _ => accepted.centre.data[px],
+        });
         let mut with_energy = denoised;
         energy::spread_into(
             &mut with_energy,
