@@ -96,8 +96,9 @@ struct ConfigArgs {
     /// guided: z of the accepted samples' confidence interval.
     #[arg(long, default_value_t = D.guide_z)]
     guide_z: f64,
-    /// guided, guided_oidn: decide the white pixels by held-out halves of
-    /// the samples (`false`: faster, each image made once; docs/filter.md F10).
+    /// guided, guided_oidn: decide white channels (guided) or white pixels
+    /// (guided_oidn) by held-out halves of the samples (`false`: faster,
+    /// each image made once; docs/filter.md F10).
     #[arg(long, default_value_t = D.held_out, action = clap::ArgAction::Set)]
     held_out: bool,
     /// Exposure of the PNG previews and the display metrics.

@@ -13,7 +13,9 @@ against the smaller of the mean's and OIDN(mean)'s (KEY=guided: the
 mean's; display error against OIDN's). Variants also decide every pixel
 in display space (the half means' difference standing for their error),
 or blend the image a fixed fraction of the way to the mean everywhere.
-Prints the counts at the targets and the geometric means. The Rust rule's guard for pixels holding a
+Prints the counts at the targets and the geometric means. Whole white
+pixels only: `guided`'s shipped rule, each white channel on its own, is
+not modelled. The Rust rule's guard for pixels holding a
 rejected sample is not modelled here.
 
 Needs the Python module and OIDN (README), flip-evaluator, and OpenEXR for
@@ -38,7 +40,7 @@ VARIANTS = [
     ("all pixels, 5 x 5", False, "var", 2, None),
     ("all pixels, 7 x 7", False, "var", 3, None),
     ("white, 7 x 7", True, "var", 3, None),
-    ("white, 17 x 17 (shipped)", True, "var", 8, None),
+    ("white, 17 x 17 (shipped for guided_oidn)", True, "var", 8, None),
     ("white, 33 x 33", True, "var", 16, None),
     ("white, whole film", True, "var", 10**6, None),
     ("white, 17 x 17, t-test z = 1", True, "var", 8, 1.0),

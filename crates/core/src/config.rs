@@ -104,8 +104,9 @@ pub struct FilterConfig {
     pub clamp: f64,
     /// guided: z of the accepted samples' confidence interval.
     pub guide_z: f64,
-    /// guided, guided_oidn: decide white pixels by held-out halves of the
-    /// samples (docs/filter.md F10), which makes each image twice more.
+    /// guided, guided_oidn: decide white channels (guided) or white pixels
+    /// (guided_oidn) by held-out halves of the samples (docs/filter.md
+    /// F10), which makes each image twice more when anything is white.
     pub held_out: bool,
     /// Exposure of the display transform (RMS_display, previews).
     pub exposure: f64,

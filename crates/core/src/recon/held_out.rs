@@ -145,7 +145,8 @@ impl Whites {
 }
 
 /// `g` (made from all the samples, with `all` their intervals) with every
-/// white pixel set to its mean x̄ where the window's held-out estimate says
+/// decided pixel (channel, under [`Whites::Channels`]) set to its mean x̄
+/// where the window's held-out estimate says
 /// x̄'s squared error is the smaller; a pixel holding a rejected sample
 /// (`accepted[px]` below its count) only where its own estimate says so
 /// too, so that no neighbour's evidence restores an outlier the filter

@@ -113,10 +113,10 @@ impl RowBand {
     }
 }
 
-/// The film in bands of whole rows that keep about `budget` bytes of
-/// `pixel_bytes` a pixel (one row at least), each frame apart, with `halo`
-/// rows either side within the frame; one band, the film, where that is
-/// all of it.
+/// The film in bands of whole rows whose own rows keep about `budget`
+/// bytes of `pixel_bytes` a pixel (one row at least; the halo's come on
+/// top), each frame apart, with `halo` rows either side within the frame;
+/// one band, the film, where that is all of it.
 pub fn row_bands(h: &Header, pixel_bytes: usize, budget: usize, halo: usize) -> Vec<RowBand> {
     let (w, ht, frames) = (h.width as usize, h.height as usize, h.frames as usize);
     let rows = (budget / (w * pixel_bytes).max(1)).max(1);
@@ -182,8 +182,9 @@ pub fn fold_in_bands<A: Default + Clone + Send, T>(
     );
 }
 
-/// [`fold`] of a dump that declares pixel- or pass-major order and holds
-/// exactly its film's samples, so that a record's place says its pixel
+/// [`fold`] of the pixels `film` (indices over all frames, one
+/// accumulator each) of a dump that declares pixel- or pass-major order
+/// and holds exactly its film's samples, so that a record's place says its pixel
 /// and sample: pixel-major, record p·spp + s is sample s of pixel p
 /// (frames in turn); pass-major, record (f·spp + s)·P + p is
 /// sample s of pixel p of frame f (P pixels a frame). Each job takes
