@@ -188,14 +188,21 @@ pub fn prefer_mean(
             }
         })
         .collect();
-    let sums: [Vec<f64>; 3] = std::array::from_fn(|c| {
-        let flat: Vec<f64> = delta.iter().map(|d| d[c].unwrap_or(0.0)).collect();
-        window_sums(&flat, w, ht, RADIUS)
-    });
+    // Under Pixels the channels' estimates are one, and so is their sum.
+    let channels = match whites {
+        Whites::Pixels => 1,
+        Whites::Channels => 3,
+    };
+    let sums: Vec<Vec<f64>> = (0..channels)
+        .map(|c| {
+            let flat: Vec<f64> = delta.iter().map(|d| d[c].unwrap_or(0.0)).collect();
+            window_sums(&flat, w, ht, RADIUS)
+        })
+        .collect();
     g.data.par_iter_mut().enumerate().for_each(|(px, v)| {
         let own = |d: f64| accepted[px] == all.count[px] || d > 0.0;
         for c in 0..3 {
-            if delta[px][c].is_some_and(own) && sums[c][px] > 0.0 {
+            if delta[px][c].is_some_and(own) && sums[c.min(channels - 1)][px] > 0.0 {
                 v[c] = all.centre.data[px][c];
             }
         }
