@@ -11,8 +11,10 @@
 //! - D is first held inside C, as the `_ci` images are: a neighbour's
 //!   spread energy that the pixel's samples refute goes back to C's edge;
 //! - then, where it lies below A, the accepted samples vouch for more than
-//!   the denoiser kept and the pixel takes their mean m: a feature the
-//!   samples agree on is never dimmed;
+//!   the denoiser kept and the pixel is raised to A's lower edge m − h: a
+//!   feature the samples agree on is never dimmed below what they vouch
+//!   for, and a pixel lifted by noise moves as little as the samples
+//!   require (their mean m was a speck on the display);
 //! - last, where the display shows both the result and the samples' mean
 //!   x̄ as white on every channel, the result is held within √2 of the
 //!   pixel's *own* standard errors of x̄ (no pooling): the display cannot
@@ -51,9 +53,7 @@ pub fn guide(denoised: &Image, accepted: &Interval, all: &Interval, white: f64) 
         if accepted.count[px] > 0 {
             let (m, h) = (accepted.centre.data[px], accepted.half_width.data[px]);
             for c in 0..3 {
-                if v[c] < m[c] - h[c] {
-                    v[c] = m[c];
-                }
+                v[c] = v[c].max(m[c] - h[c]);
             }
         }
         let (x, se) = (all.centre.data[px], all.own_se.data[px]);
@@ -95,12 +95,12 @@ mod tests {
     }
 
     #[test]
-    fn a_vouched_feature_takes_the_accepted_mean_a_spread_one_the_edge() {
+    fn a_vouched_feature_and_a_spread_one_go_to_the_intervals_edges() {
         let all = interval(120.0, 90.0, 16);
         let accepted = interval(100.0, 30.0, 15);
         // A highlight the denoiser dimmed to 28: the accepted samples say
-        // 100 ± 30.
-        assert_eq!(guide_(&one(28.0), &accepted, &all).data[0], [100.0; 3]);
+        // 100 ± 30, so at least 70.
+        assert_eq!(guide_(&one(28.0), &accepted, &all).data[0], [70.0; 3]);
         // Energy spread into the pixel beyond what all its samples allow.
         assert_eq!(guide_(&one(500.0), &accepted, &all).data[0], [210.0; 3]);
         // Inside both: the denoiser's.
