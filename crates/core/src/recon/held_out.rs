@@ -92,31 +92,53 @@ pub(crate) fn fold_half<S: Default + Clone + Send>(
     per_pixel::fold_in_bands(records, h, bands, jobs, item, fold, each)
 }
 
-/// What the decision reads of one half: the image made from its samples
-/// alone, and their per-pixel mean, own standard error and count.
-pub struct Half {
-    pub image: Image,
-    pub mean: Image,
-    pub own_se: Image,
-    pub count: Vec<u32>,
+/// The pixels the halves decide, in order: some channel white in both G
+/// and x̄ ([`Whites::shown`]) and four valid samples or more (two in each
+/// half). The decision reads the halves there alone, so only those
+/// pixels of a half are kept while the other is made.
+pub struct Decided(Vec<usize>);
+
+impl Decided {
+    /// The pixels of `g`, made from all the samples with `all` their
+    /// intervals, that `whites` decides; `white` the linear value the
+    /// display shows as white.
+    pub fn of(g: &Image, all: &Interval, white: f64, whites: Whites) -> Decided {
+        let shown = |px: usize| whites.shown(&g.data[px], &all.centre.data[px], white);
+        let px = (0..g.data.len()).into_par_iter();
+        Decided(
+            px.filter(|&px| all.count[px] >= 4 && shown(px).contains(&true))
+                .collect(),
+        )
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
 }
 
+/// What the decision reads of one half at a decided pixel: the image made
+/// from its samples alone, and their mean, own standard error and count.
+struct HalfPixel {
+    image: [f64; 3],
+    mean: [f64; 3],
+    own_se: [f64; 3],
+    count: u32,
+}
+
+/// One half at the [`Decided`] pixels, in their order.
+pub struct Half(Vec<HalfPixel>);
+
 impl Half {
-    /// The half's `image`, and what the decision reads of its intervals
-    /// `all` (their widths go).
-    pub fn new(image: Image, all: Interval) -> Half {
-        let Interval {
-            centre,
-            own_se,
-            count,
-            ..
-        } = all;
-        Half {
-            image,
-            mean: centre,
-            own_se,
-            count,
-        }
+    /// The half's `image` and its intervals `all` at the `decided` pixels
+    /// (the rest goes).
+    pub fn new(image: Image, all: Interval, decided: &Decided) -> Half {
+        let at = |px: usize| HalfPixel {
+            image: image.data[px],
+            mean: all.centre.data[px],
+            own_se: all.own_se.data[px],
+            count: all.count[px],
+        };
+        Half(decided.0.iter().map(|&px| at(px)).collect())
     }
 }
 
@@ -151,34 +173,35 @@ impl Whites {
 /// x̄'s squared error is the smaller; a pixel holding a rejected sample
 /// (`accepted[px]` below its count) only where its own estimate says so
 /// too, so that no neighbour's evidence restores an outlier the filter
-/// rejected. `halves[k]` is half k's [`Half`]; `white` the linear value
-/// the display shows as white; `whites` what is decided, channel by
-/// channel (a white pixel's channels together under [`Whites::Pixels`]).
+/// rejected. `halves[k]` is half k's [`Half`] at the `decided` pixels;
+/// `white` the linear value the display shows as white; `whites` what is
+/// decided, channel by channel (a white pixel's channels together under
+/// [`Whites::Pixels`]).
 pub fn prefer_mean(
     g: &mut Image,
     all: &Interval,
     accepted: &[u32],
     halves: [&Half; 2],
+    decided: &Decided,
     white: f64,
     whites: Whites,
 ) {
     let (w, ht) = (g.width, g.height);
-    // Per pixel and channel: MSE(G) − MSE(x̄), estimated from the halves
-    // (None where the channel is not decided; a non-finite estimate
-    // decides nothing, nor its window's sum).
-    let delta: Vec<[Option<f64>; 3]> = (0..g.data.len())
-        .into_par_iter()
-        .map(|px| {
-            let counted = all.count[px] >= 2 && halves.iter().all(|h| h.count[px] >= 2);
-            let [a, b] = halves.map(|h| (h.mean.data[px], h.own_se.data[px]));
-            let [ga, gb] = halves.map(|h| h.image.data[px]);
+    // Per decided pixel and channel: MSE(G) − MSE(x̄), estimated from the
+    // halves (None where the channel is not decided; a non-finite
+    // estimate decides nothing, nor its window's sum).
+    let delta: Vec<[Option<f64>; 3]> = (decided.0.par_iter().enumerate())
+        .map(|(i, &px)| {
+            let [a, b] = halves.map(|h| &h.0[i]);
+            let counted = all.count[px] >= 2 && a.count >= 2 && b.count >= 2;
             let shown = whites.shown(&g.data[px], &all.centre.data[px], white);
             let d: [Option<f64>; 3] = std::array::from_fn(|c| {
                 if !(counted && shown[c]) {
                     return None;
                 }
-                let (va, vb) = (a.1[c] * a.1[c], b.1[c] * b.1[c]);
-                let held = ((ga[c] - b.0[c]).powi(2) + (gb[c] - a.0[c]).powi(2)) / 2.0;
+                let (va, vb) = (a.own_se[c] * a.own_se[c], b.own_se[c] * b.own_se[c]);
+                let held =
+                    ((a.image[c] - b.mean[c]).powi(2) + (b.image[c] - a.mean[c]).powi(2)) / 2.0;
                 Some(held - va - vb)
             });
             let finite = |d: Option<f64>| d.filter(|d| d.is_finite());
@@ -195,18 +218,21 @@ pub fn prefer_mean(
     };
     let sums: Vec<Vec<f64>> = (0..channels)
         .map(|c| {
-            let flat: Vec<f64> = delta.iter().map(|d| d[c].unwrap_or(0.0)).collect();
+            let mut flat = vec![0.0; g.data.len()];
+            for (d, &px) in delta.iter().zip(&decided.0) {
+                flat[px] = d[c].unwrap_or(0.0);
+            }
             window_sums(&flat, w, ht, RADIUS)
         })
         .collect();
-    g.data.par_iter_mut().enumerate().for_each(|(px, v)| {
+    for (d, &px) in delta.iter().zip(&decided.0) {
         let own = |d: f64| accepted[px] == all.count[px] || d > 0.0;
         for c in 0..3 {
-            if delta[px][c].is_some_and(own) && sums[c.min(channels - 1)][px] > 0.0 {
-                v[c] = all.centre.data[px][c];
+            if d[c].is_some_and(own) && sums[c.min(channels - 1)][px] > 0.0 {
+                g.data[px][c] = all.centre.data[px][c];
             }
         }
-    });
+    }
 }
 
 /// Per pixel the sum of `v` over the (2r + 1)² window around it, within
@@ -403,13 +429,16 @@ mod tests {
     fn white_pixels_take_the_estimate_the_other_half_prefers() {
         let decide = |g: f64, halves: [(f64, f64); 2], g_halves: f64, white: f64, n: u32| {
             let all = interval(10.0, 1.0, 2 * n);
-            let a = halves.map(|(m, se)| Half::new(one(g_halves), interval(m, se, n)));
             let mut out = one(g);
+            let decided = Decided::of(&out, &all, white, Whites::Pixels);
+            let a = halves.map(|(m, se)| Half::new(one(g_halves), interval(m, se, n), &decided));
+            let halves = [&a[0], &a[1]];
             prefer_mean(
                 &mut out,
                 &all,
                 &all.count,
-                [&a[0], &a[1]],
+                halves,
+                &decided,
                 white,
                 Whites::Pixels,
             );
@@ -445,21 +474,63 @@ mod tests {
         let all = intervals([10.0, 10.0], [1.0, 1.0], 16);
         // Pixel 0: δ = ((20 − 11)² + (20 − 9)²)/2 − 2 = 99 per channel;
         // pixel 1: δ = (1 + 1)/2 − 2 = −1 per channel.
+        let decided = Decided::of(&two([20.0, 12.0]), &all, 1.0, Whites::Pixels);
         let halves = [
             intervals([9.0, 9.0], [1.0, 1.0], 8),
             intervals([11.0, 11.0], [1.0, 1.0], 8),
         ]
-        .map(|a| Half::new(two([20.0, 10.0]), a));
+        .map(|a| Half::new(two([20.0, 10.0]), a, &decided));
         let decide = |accepted: [u32; 2]| {
             let mut out = two([20.0, 12.0]);
             let halves = [&halves[0], &halves[1]];
-            prefer_mean(&mut out, &all, &accepted, halves, 1.0, Whites::Pixels);
+            let whites = Whites::Pixels;
+            prefer_mean(&mut out, &all, &accepted, halves, &decided, 1.0, whites);
             [out.data[0][0], out.data[1][0]]
         };
         assert_eq!(decide([16, 16]), [10.0, 10.0]);
         assert_eq!(decide([16, 15]), [10.0, 12.0]);
         // Its own strong estimate restores a pixel with a rejected sample.
         assert_eq!(decide([15, 16]), [10.0, 10.0]);
+    }
+
+    /// Only the decided pixels of a half are kept, in their order: on a
+    /// 3 × 1 film whose middle pixel is below white, the outer two are
+    /// decided each by its own halves' values (the left's say the mean,
+    /// the right's, a pixel holding a rejected sample, the denoiser's).
+    #[test]
+    fn a_half_is_kept_at_the_decided_pixels_alone() {
+        let three = |v: [f64; 3]| Image {
+            width: 3,
+            height: 1,
+            frames: 1,
+            data: v.map(|v| [v; 3]).to_vec(),
+        };
+        let intervals = |m: [f64; 3], n: u32| Interval {
+            centre: three(m),
+            half_width: three([3.0; 3]),
+            count: vec![n; 3],
+            own_se: three([1.0; 3]),
+            z: 3.0,
+        };
+        let all = intervals([10.0, 0.5, 10.0], 16);
+        let mut out = three([20.0, 0.7, 12.0]);
+        let decided = Decided::of(&out, &all, 1.0, Whites::Pixels);
+        assert_eq!(decided.0, [0, 2]);
+        // Left: ((20 − 11)² + (20 − 9)²)/2 − 2 = 99 a channel; right: −1.
+        let halves = [([9.0, 0.0, 9.0]), ([11.0, 0.0, 11.0])]
+            .map(|m| Half::new(three([20.0, 50.0, 10.0]), intervals(m, 8), &decided));
+        let halves = [&halves[0], &halves[1]];
+        prefer_mean(
+            &mut out,
+            &all,
+            &[16, 16, 15],
+            halves,
+            &decided,
+            1.0,
+            Whites::Pixels,
+        );
+        let reds: Vec<f64> = out.data.iter().map(|v| v[0]).collect();
+        assert_eq!(reds, [10.0, 0.7, 12.0]);
     }
 
     /// A coloured highlight white on its blue channel alone: by channels
@@ -482,16 +553,12 @@ mod tests {
         // Each half's image lies about 10 from the other half's blue mean.
         let decide = |x: [f64; 3], halves: [[f64; 3]; 2], g: [f64; 3], whites| {
             let all = interval(x, 16);
-            let halves = halves.map(|m| Half::new(pixel([x[0], x[1], 20.0]), interval(m, 8)));
             let mut out = pixel(g);
-            prefer_mean(
-                &mut out,
-                &all,
-                &all.count,
-                [&halves[0], &halves[1]],
-                1.0,
-                whites,
-            );
+            let decided = Decided::of(&out, &all, 1.0, whites);
+            let image = pixel([x[0], x[1], 20.0]);
+            let halves = halves.map(|m| Half::new(image.clone(), interval(m, 8), &decided));
+            let halves = [&halves[0], &halves[1]];
+            prefer_mean(&mut out, &all, &all.count, halves, &decided, 1.0, whites);
             out.data[0]
         };
         let coloured = [[0.4, 0.4, 9.9], [0.6, 0.6, 10.1]];

@@ -8,7 +8,6 @@ use std::sync::Arc;
 use super::{Estimators, timed};
 use crate::density::Decision;
 use crate::imagespace::{self, oidn::OidnError};
-use crate::par::prelude::*;
 use crate::recon::confidence::{self, Interval, Moments};
 use crate::recon::held_out::{Half, HalfFold, Whites};
 use crate::recon::per_pixel::RowBand;
@@ -70,19 +69,16 @@ impl Estimators<'_, '_> {
         }
         let (all, _) = self.shared.interval();
         let white = 1.0 / self.config.exposure;
-        // A pixel is decided with two samples in each half.
-        let any_white = (0..g.data.len()).into_par_iter().any(|px| {
-            let shown = whites.shown(&g.data[px], &all.centre.data[px], white);
-            all.count[px] >= 4 && shown.contains(&true)
-        });
-        if !any_white {
+        let decided = held_out::Decided::of(g, all, white, whites);
+        if decided.is_empty() {
             return Ok(());
         }
-        let half = |second| make(second).map(|(image, all)| Half::new(image, all));
+        let half = |second| make(second).map(|(image, all)| Half::new(image, all, &decided));
         let first = half(false)?;
         let second = half(true)?;
         let (accepted, _) = self.accepted_interval();
-        held_out::prefer_mean(g, all, &accepted.count, [&first, &second], white, whites);
+        let halves = [&first, &second];
+        held_out::prefer_mean(g, all, &accepted.count, halves, &decided, white, whites);
         Ok(())
     }
 
