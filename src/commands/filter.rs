@@ -217,10 +217,9 @@ fn read_aux(
         return Ok(None);
     };
     pipeline::check_aux()?;
-    Ok(Some(Aux {
-        albedo: film(albedo)?,
-        normal: opts.normal.as_ref().map(film).transpose()?,
-    }))
+    let albedo = film(albedo)?;
+    let normal = opts.normal.as_ref().map(film).transpose()?;
+    Ok(Some(Aux::new(&albedo, normal.as_ref())))
 }
 
 /// When the run started, and how long opening it took.

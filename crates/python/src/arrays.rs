@@ -140,10 +140,9 @@ pub(crate) fn aux_of(
         return Ok(None);
     };
     pipeline::check_aux().map_err(|e| value_error(e.to_string()))?;
-    Ok(Some(Aux {
-        albedo: film_of("albedo", albedo, h)?,
-        normal: normal.map(|n| film_of("normal", n, h)).transpose()?,
-    }))
+    let albedo = film_of("albedo", albedo, h)?;
+    let normal = normal.map(|n| film_of("normal", n, h)).transpose()?;
+    Ok(Some(Aux::new(&albedo, normal.as_ref())))
 }
 
 /// An image as the `filter` command writes it to EXR (rounded to f32,

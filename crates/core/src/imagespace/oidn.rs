@@ -34,11 +34,29 @@ use crate::recon::Image;
 
 /// OIDN's auxiliary images, the film's size and frames: the first-hit
 /// albedo, and optionally the normal (OIDN takes a normal only with an
-/// albedo). Non-finite values go in as 0.
+/// albedo). Kept as OIDN reads them, f32 with non-finite values as 0,
+/// made once for every call of a run (up to three at 1080p, where a
+/// copy for each call was 50 MB at the run's peak).
 #[derive(Clone, Debug)]
 pub struct Aux {
-    pub albedo: Image,
-    pub normal: Option<Image>,
+    albedo: Vec<f32>,
+    normal: Option<Vec<f32>>,
+}
+
+impl Aux {
+    pub fn new(albedo: &Image, normal: Option<&Image>) -> Aux {
+        Aux {
+            albedo: oidn_values(albedo),
+            normal: normal.map(oidn_values),
+        }
+    }
+}
+
+/// An auxiliary image's values as OIDN takes them: RGB f32, row-major,
+/// frame after frame, non-finite as 0.
+fn oidn_values(img: &Image) -> Vec<f32> {
+    let value = |&v: &f64| if v.is_finite() { v as f32 } else { 0.0 };
+    img.data.iter().flatten().map(value).collect()
 }
 
 /// A denoised image and what had to be changed in its input.
@@ -328,15 +346,6 @@ fn input(img: &Image, f: usize, non_finite: &mut u64, negative: &mut u64) -> Vec
     out
 }
 
-/// An auxiliary image's frame `f` as OIDN takes it: f32, non-finite as 0.
-fn aux_input(img: &Image, f: usize) -> Vec<f32> {
-    img.frame(f)
-        .iter()
-        .flatten()
-        .map(|&v| if v.is_finite() { v as f32 } else { 0.0 })
-        .collect()
-}
-
 /// Why OIDN made no image.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum OidnError {
@@ -396,17 +405,20 @@ fn denoise_with(
     let n = img.pixels_per_frame();
     for f in 0..img.frames {
         let mut color = input(img, f, &mut non_finite, &mut negative);
-        let mut albedo = aux.map(|a| aux_input(&a.albedo, f));
-        let mut normal = aux.and_then(|a| a.normal.as_ref()).map(|n| aux_input(n, f));
         let mut result = vec![0.0f32; color.len()];
-        let set = |name: &CStr, buf: Option<&mut Vec<f32>>| match buf {
+        let frame = |v: &Vec<f32>| v[3 * n * f..3 * n * (f + 1)].as_ptr().cast_mut();
+        let albedo = aux.map(|a| frame(&a.albedo));
+        let normal = aux.and_then(|a| a.normal.as_ref()).map(frame);
+        let set = |name: &CStr, buf: Option<*mut f32>| match buf {
             // SAFETY: `buf` holds w·h RGB f32 values, row-major (OIDN's
-            // FLOAT3 with default strides), alive until the filter runs.
+            // FLOAT3 with default strides), alive until the filter runs;
+            // OIDN writes only the output, so the auxiliary images, read
+            // through a shared borrow, are never written.
             Some(b) => unsafe {
                 (api.shared_image)(
                     s.filter,
                     name.as_ptr(),
-                    b.as_mut_ptr().cast(),
+                    b.cast(),
                     FORMAT_FLOAT3,
                     w,
                     h,
@@ -417,10 +429,10 @@ fn denoise_with(
             },
             None => unsafe { (api.unset_image)(s.filter, name.as_ptr()) },
         };
-        set(c"color", Some(&mut color));
-        set(c"albedo", albedo.as_mut());
-        set(c"normal", normal.as_mut());
-        set(c"output", Some(&mut result));
+        set(c"color", Some(color.as_mut_ptr()));
+        set(c"albedo", albedo);
+        set(c"normal", normal);
+        set(c"output", Some(result.as_mut_ptr()));
         unsafe { (api.commit_filter)(s.filter) };
         s.check("committing the filter")?;
         unsafe { (api.execute_filter)(s.filter) };
@@ -531,10 +543,7 @@ mod tests {
             r - l
         };
         let plain = denoise(&img, &occupancy, None).unwrap();
-        let aux = Aux {
-            albedo: albedo.clone(),
-            normal: None,
-        };
+        let aux = Aux::new(&albedo, None);
         let with = denoise(&img, &occupancy, Some(&aux)).unwrap();
         assert!(
             edge(&with) > edge(&plain),
@@ -546,10 +555,7 @@ mod tests {
             data: vec![[0.0, 0.0, 1.0]; w * h],
             ..albedo.clone()
         };
-        let both = Aux {
-            albedo,
-            normal: Some(normal),
-        };
+        let both = Aux::new(&albedo, Some(&normal));
         assert!(denoise(&img, &occupancy, Some(&both)).is_ok());
     }
 }

@@ -48,13 +48,33 @@ pub const SATURATED_Z: f64 = std::f64::consts::SQRT_2;
 /// `white` is the linear value the display shows as white (1/exposure).
 /// Pixels with no valid sample stay 0.
 pub fn guide(denoised: &Image, accepted: &Interval, all: &Interval, white: f64) -> Image {
+    guide_from(denoised, |px| floor(accepted, px), all, white)
+}
+
+/// The least value pixel `px`'s accepted samples vouch for, per channel:
+/// the lower edge m − h of their interval `accepted`, or −∞ where none
+/// was accepted.
+pub fn floor(accepted: &Interval, px: usize) -> [f64; 3] {
+    let (m, h) = (accepted.centre.data[px], accepted.half_width.data[px]);
+    match accepted.count[px] {
+        0 => [f64::NEG_INFINITY; 3],
+        _ => std::array::from_fn(|c| m[c] - h[c]),
+    }
+}
+
+/// [`guide`] with the accepted samples' interval read as its [`floor`]s
+/// alone: `floor(px)`, which a caller may keep instead of the interval.
+pub fn guide_from(
+    denoised: &Image,
+    floor: impl Fn(usize) -> [f64; 3] + Sync,
+    all: &Interval,
+    white: f64,
+) -> Image {
     let mut out = all.bound(denoised);
     out.data.par_iter_mut().enumerate().for_each(|(px, v)| {
-        if accepted.count[px] > 0 {
-            let (m, h) = (accepted.centre.data[px], accepted.half_width.data[px]);
-            for c in 0..3 {
-                v[c] = v[c].max(m[c] - h[c]);
-            }
+        let least = floor(px);
+        for c in 0..3 {
+            v[c] = v[c].max(least[c]);
         }
         let (x, se) = (all.centre.data[px], all.own_se.data[px]);
         if shown_white(all, px, v, white) {
