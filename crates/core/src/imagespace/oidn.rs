@@ -35,8 +35,8 @@ use crate::recon::Image;
 /// OIDN's auxiliary images, the film's size and frames: the first-hit
 /// albedo, and optionally the normal (OIDN takes a normal only with an
 /// albedo). Kept as OIDN reads them, f32 with non-finite values as 0,
-/// made once for every call of a run (up to three at 1080p, where a
-/// copy for each call was 50 MB at the run's peak).
+/// made once for every call of a run (up to three: the image and two
+/// held-out halves).
 #[derive(Clone, Debug)]
 pub struct Aux {
     albedo: Vec<f32>,
@@ -406,7 +406,14 @@ fn denoise_with(
     for f in 0..img.frames {
         let mut color = input(img, f, &mut non_finite, &mut negative);
         let mut result = vec![0.0f32; color.len()];
-        let frame = |v: &Vec<f32>| v[3 * n * f..3 * n * (f + 1)].as_ptr().cast_mut();
+        let frame = |v: &Vec<f32>| {
+            debug_assert_eq!(
+                v.len(),
+                3 * n * img.frames,
+                "an auxiliary image the film's size"
+            );
+            v[3 * n * f..3 * n * (f + 1)].as_ptr().cast_mut()
+        };
         let albedo = aux.map(|a| frame(&a.albedo));
         let normal = aux.and_then(|a| a.normal.as_ref()).map(frame);
         let set = |name: &CStr, buf: Option<*mut f32>| match buf {

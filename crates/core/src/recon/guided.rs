@@ -14,7 +14,7 @@
 //!   the denoiser kept and the pixel is raised to A's lower edge m − h: a
 //!   feature the samples agree on is never dimmed below what they vouch
 //!   for, and a pixel lifted by noise moves as little as the samples
-//!   require (their mean m was a speck on the display);
+//!   require;
 //! - last, where the display shows both the result and the samples' mean
 //!   x̄ as white on every channel, the result is held within √2 of the
 //!   pixel's *own* standard errors of x̄ (no pooling): the display cannot
@@ -63,18 +63,21 @@ pub fn floor(accepted: &Interval, px: usize) -> [f64; 3] {
 }
 
 /// [`guide`] with the accepted samples' interval read as its [`floor`]s
-/// alone: `floor(px)`, which a caller may keep instead of the interval.
+/// alone: `least(px)`, which a caller may keep instead of the interval.
 pub fn guide_from(
     denoised: &Image,
-    floor: impl Fn(usize) -> [f64; 3] + Sync,
+    least: impl Fn(usize) -> [f64; 3] + Sync,
     all: &Interval,
     white: f64,
 ) -> Image {
     let mut out = all.bound(denoised);
     out.data.par_iter_mut().enumerate().for_each(|(px, v)| {
-        let least = floor(px);
+        let least = least(px);
         for c in 0..3 {
-            v[c] = v[c].max(least[c]);
+            // Not `max`: a value that is not a number stays so.
+            if v[c] < least[c] {
+                v[c] = least[c];
+            }
         }
         let (x, se) = (all.centre.data[px], all.own_se.data[px]);
         if shown_white(all, px, v, white) {
@@ -136,6 +139,12 @@ mod tests {
         assert_eq!(
             guide_(&one(2.0), &interval(0.0, 0.0, 0), &all).data[0],
             [2.0; 3]
+        );
+        // Nothing accepted says nothing, not "at least m − h = 0".
+        let wide = interval(5.0, 40.0, 4);
+        assert_eq!(
+            guide_(&one(-3.0), &interval(0.0, 0.0, 0), &wide).data[0],
+            [-3.0; 3]
         );
         let unbounded = interval(8.0, f64::INFINITY, 1);
         assert_eq!(guide_(&one(2.0), &unbounded, &all).data[0], [2.0; 3]);

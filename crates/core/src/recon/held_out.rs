@@ -104,9 +104,9 @@ impl Decided {
     /// display shows as white.
     pub fn of(g: &Image, all: &Interval, white: f64, whites: Whites) -> Decided {
         let shown = |px: usize| whites.shown(&g.data[px], &all.centre.data[px], white);
-        let px = (0..g.data.len()).into_par_iter();
+        let film = (0..g.data.len()).into_par_iter();
         Decided(
-            px.filter(|&px| all.count[px] >= 4 && shown(px).contains(&true))
+            film.filter(|&px| all.count[px] >= 4 && shown(px).contains(&true))
                 .collect(),
         )
     }
@@ -187,6 +187,7 @@ pub fn prefer_mean(
     whites: Whites,
 ) {
     let (w, ht) = (g.width, g.height);
+    debug_assert!(halves.iter().all(|h| h.0.len() == decided.0.len()));
     // Per decided pixel and channel: MSE(G) − MSE(x̄), estimated from the
     // halves (None where the channel is not decided; a non-finite
     // estimate decides nothing, nor its window's sum).
@@ -493,44 +494,66 @@ mod tests {
         assert_eq!(decide([15, 16]), [10.0, 10.0]);
     }
 
-    /// Only the decided pixels of a half are kept, in their order: on a
-    /// 3 × 1 film whose middle pixel is below white, the outer two are
-    /// decided each by its own halves' values (the left's say the mean,
-    /// the right's, a pixel holding a rejected sample, the denoiser's).
+    /// Only the decided pixels of a half are kept, in their order, and
+    /// each is decided by its own window: on a 40 × 1 film whose pixels
+    /// 0, 20 and 39 are white (their windows apart), 0 and 39 take their
+    /// mean (δ = 99, 48) and 20 keeps the denoiser's (δ = −1); the other
+    /// pixels' half values, which would say the mean, are not read.
     #[test]
     fn a_half_is_kept_at_the_decided_pixels_alone() {
-        let three = |v: [f64; 3]| Image {
-            width: 3,
+        const W: usize = 40;
+        let film = |at: [f64; 3], elsewhere: f64| Image {
+            width: W,
             height: 1,
             frames: 1,
-            data: v.map(|v| [v; 3]).to_vec(),
+            data: (0..W)
+                .map(|x| match x {
+                    0 => [at[0]; 3],
+                    20 => [at[1]; 3],
+                    39 => [at[2]; 3],
+                    _ => [elsewhere; 3],
+                })
+                .collect(),
         };
-        let intervals = |m: [f64; 3], n: u32| Interval {
-            centre: three(m),
-            half_width: three([3.0; 3]),
-            count: vec![n; 3],
-            own_se: three([1.0; 3]),
+        let intervals = |mean: f64, elsewhere: f64, n: u32| Interval {
+            centre: film([mean; 3], elsewhere),
+            half_width: film([3.0; 3], 3.0),
+            count: vec![n; W],
+            own_se: film([1.0; 3], 1.0),
             z: 3.0,
         };
-        let all = intervals([10.0, 0.5, 10.0], 16);
-        let mut out = three([20.0, 0.7, 12.0]);
+        let all = intervals(10.0, 0.5, 16);
+        let mut out = film([20.0, 12.0, 17.0], 0.7);
         let decided = Decided::of(&out, &all, 1.0, Whites::Pixels);
-        assert_eq!(decided.0, [0, 2]);
-        // Left: ((20 − 11)² + (20 − 9)²)/2 − 2 = 99 a channel; right: −1.
-        let halves = [([9.0, 0.0, 9.0]), ([11.0, 0.0, 11.0])]
-            .map(|m| Half::new(three([20.0, 50.0, 10.0]), intervals(m, 8), &decided));
+        assert_eq!(decided.0, [0, 20, 39]);
+        // ((g − 11)² + (g − 9)²)/2 − 2 = (g − 10)² − 1 a channel.
+        let halves = [9.0, 11.0].map(|m| {
+            Half::new(
+                film([20.0, 10.0, 17.0], 50.0),
+                intervals(m, 0.0, 8),
+                &decided,
+            )
+        });
         let halves = [&halves[0], &halves[1]];
+        let accepted = vec![16; W];
         prefer_mean(
             &mut out,
             &all,
-            &[16, 16, 15],
+            &accepted,
             halves,
             &decided,
             1.0,
             Whites::Pixels,
         );
         let reds: Vec<f64> = out.data.iter().map(|v| v[0]).collect();
-        assert_eq!(reds, [10.0, 0.7, 12.0]);
+        assert_eq!(
+            reds,
+            film([10.0, 12.0, 10.0], 0.7)
+                .data
+                .iter()
+                .map(|v| v[0])
+                .collect::<Vec<_>>()
+        );
     }
 
     /// A coloured highlight white on its blue channel alone: by channels
