@@ -565,4 +565,42 @@ mod tests {
         let both = Aux::new(&albedo, Some(&normal));
         assert!(denoise(&img, &occupancy, Some(&both)).is_ok());
     }
+
+    /// Each frame of an animation is denoised with its own frame of the
+    /// auxiliary images: two frames at once give the bits of each alone.
+    #[test]
+    fn each_frame_reads_its_own_auxiliary_frame() {
+        let Some(lib) = oidn() else {
+            return;
+        };
+        let (w, h) = (16, 16);
+        let frame = |f: usize| {
+            let mut img = Image::new(w, h, 1);
+            let mut albedo = Image::new(w, h, 1);
+            for (p, px) in img.data.iter_mut().enumerate() {
+                let edge = if f == 0 { p % w < w / 2 } else { p / w < h / 2 };
+                let level = if edge { 0.2 } else { 0.8 };
+                *px = [level + 0.05 * ((p * 7 + f) % 5) as f64; 3];
+                albedo.data[p] = [level; 3];
+            }
+            (img, albedo)
+        };
+        let [(a, albedo_a), (b, albedo_b)] = [frame(0), frame(1)];
+        let join = |x: &Image, y: &Image| Image {
+            frames: 2,
+            data: [x.data.clone(), y.data.clone()].concat(),
+            ..x.clone()
+        };
+        let occupancy = vec![4u32; w * h * 2];
+        let bits = |d: Denoised| -> Vec<u64> {
+            d.image.data.iter().flatten().map(|v| v.to_bits()).collect()
+        };
+        let alone = |img: &Image, albedo: &Image| {
+            let aux = Aux::new(albedo, None);
+            bits(denoise_with(&lib, img, &occupancy[..w * h], Some(&aux)).unwrap())
+        };
+        let aux = Aux::new(&join(&albedo_a, &albedo_b), None);
+        let both = bits(denoise_with(&lib, &join(&a, &b), &occupancy, Some(&aux)).unwrap());
+        assert_eq!(both, [alone(&a, &albedo_a), alone(&b, &albedo_b)].concat());
+    }
 }
