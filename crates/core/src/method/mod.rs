@@ -58,7 +58,8 @@ pub enum Method {
     /// The density-guided image ([`crate::recon::guided`]): statmc with
     /// the removed energy spread back where the pixel is noise, raised to
     /// what the accepted samples vouch for where they vouch for more,
-    /// never above what all its samples allow. The recommended image where no OIDN is found.
+    /// never above what all its samples allow. The recommended image
+    /// where no OIDN is found.
     Guided,
     /// The same with OIDN's image of the mean as the denoiser (needs
     /// OIDN; the recommended image where it is found).

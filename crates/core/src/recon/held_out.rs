@@ -194,7 +194,8 @@ pub fn prefer_mean(
     let delta: Vec<[Option<f64>; 3]> = (decided.0.par_iter().enumerate())
         .map(|(i, &px)| {
             let [a, b] = halves.map(|h| &h.0[i]);
-            let counted = all.count[px] >= 2 && a.count >= 2 && b.count >= 2;
+            // A decided pixel has four samples or more; each half needs two.
+            let counted = a.count >= 2 && b.count >= 2;
             let shown = whites.shown(&g.data[px], &all.centre.data[px], white);
             let d: [Option<f64>; 3] = std::array::from_fn(|c| {
                 if !(counted && shown[c]) {
