@@ -73,22 +73,29 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
         .collect();
     assert!(autos.iter().all(|&v| v == autos[0] && v > 0.0 && v != 1.0));
     let names: Vec<&str> = s.baselines.iter().map(|b| b.label.as_str()).collect();
+    // OIDN's baselines join where a library is found (`OIDN_DIR`, …).
+    let oidn: &[&str] = match pathdensity::imagespace::oidn::available() {
+        true => &["oidn", "oidn_ci"],
+        false => &[],
+    };
+    let head = ["mean", "median", "trimmed", "bilateral"];
     assert_eq!(
         names,
         [
-            "mean",
-            "median",
-            "trimmed",
-            "bilateral",
-            "mon groups=3",
-            "gmon groups=3",
-            "mon groups=11",
-            "gmon groups=11",
-            "rwmc kappa=2",
-            "rwmc kappa=32",
-            "clamp C=1",
-            "clamp C=10"
+            &head[..],
+            oidn,
+            &[
+                "mon groups=3",
+                "gmon groups=3",
+                "mon groups=11",
+                "gmon groups=11",
+                "rwmc kappa=2",
+                "rwmc kappa=32",
+                "clamp C=1",
+                "clamp C=10"
+            ]
         ]
+        .concat()
     );
 
     // The labelled peer baselines are the same images `filter` makes with
@@ -122,7 +129,7 @@ fn every_configuration_is_a_row_and_failures_carry_their_reason() {
     assert_ne!(by("clamp C=1"), by("clamp C=10"));
     let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
     // Two lines per configuration (filtered, filtered_energy), one per baseline.
-    assert_eq!(csv.lines().count(), 1 + 2 * 24 + 12);
+    assert_eq!(csv.lines().count(), 1 + 2 * 24 + 12 + oidn.len());
     assert_eq!(csv.matches("failed:").count(), 2 * 16);
     let d = pathdensity::config::FilterConfig::DEFAULT;
     let energy_rows = format!("\nfiltered_energy,{},{},", d.final_pass, d.color_space);
@@ -232,6 +239,11 @@ fn equal_time_rows_are_prefix_renders_at_matching_time() {
         filter(&f).unwrap().metrics[&common::image(name)].pooled
     };
 
+    // OIDN's peers join where a library is found (`OIDN_DIR`, …).
+    let oidn: &[&str] = match pathdensity::imagespace::oidn::available() {
+        true => &["oidn", "oidn_ci"],
+        false => &[],
+    };
     // Rendering dominates (1e6 s for 8 passes): the mean gets as many
     // passes as the filter, capped at the dump's 8.
     let slow = pathdensity::sweep::equal_time(&o, 1e6, &pathdensity::progress::Silent).unwrap();
@@ -250,11 +262,15 @@ fn equal_time_rows_are_prefix_renders_at_matching_time() {
         assert_eq!(
             names,
             [
-                "mon groups=11",
-                "gmon groups=11",
-                "rwmc kappa=32",
-                "clamp C=10"
+                &[
+                    "mon groups=11",
+                    "gmon groups=11",
+                    "rwmc kappa=32",
+                    "clamp C=10"
+                ][..],
+                oidn
             ]
+            .concat()
         );
         for ((_, m), method) in r.peers.iter().zip(["mon", "gmon", "rwmc", "clamp"]) {
             assert_eq!(*m, prefix_metrics(r.mean_spp, method), "{method}");
