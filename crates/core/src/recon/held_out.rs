@@ -114,6 +114,33 @@ impl Decided {
     pub fn is_empty(&self) -> bool {
         self.0.is_empty()
     }
+
+    /// `img`'s decided pixels, in their order, as one row.
+    pub fn image(&self, img: &Image) -> Image {
+        self.map(|px| img.data[px])
+    }
+
+    /// `at(px)` of each decided pixel px, in their order, as one row.
+    pub fn map(&self, at: impl Fn(usize) -> [f64; 3]) -> Image {
+        Image {
+            width: self.0.len(),
+            height: 1,
+            frames: 1,
+            data: self.0.iter().map(|&px| at(px)).collect(),
+        }
+    }
+
+    /// `all`'s intervals at the decided pixels, in their order, as one row
+    /// (their variances already pooled over the film's neighbours).
+    pub fn interval(&self, all: &Interval) -> Interval {
+        Interval {
+            centre: self.image(&all.centre),
+            half_width: self.image(&all.half_width),
+            count: self.0.iter().map(|&px| all.count[px]).collect(),
+            own_se: self.image(&all.own_se),
+            z: all.z,
+        }
+    }
 }
 
 /// What the decision reads of one half at a decided pixel: the image made
@@ -129,16 +156,17 @@ struct HalfPixel {
 pub struct Half(Vec<HalfPixel>);
 
 impl Half {
-    /// The half's `image` and its intervals `all` at the `decided` pixels
-    /// (the rest goes).
-    pub fn new(image: Image, all: Interval, decided: &Decided) -> Half {
-        let at = |px: usize| HalfPixel {
-            image: image.data[px],
-            mean: all.centre.data[px],
-            own_se: all.own_se.data[px],
-            count: all.count[px],
+    /// The half's `image` and its intervals `all`, both at the decided
+    /// pixels in their order ([`Decided::image`], [`Decided::interval`]).
+    pub fn new(image: &Image, all: &Interval) -> Half {
+        debug_assert_eq!(image.data.len(), all.count.len());
+        let at = |i: usize| HalfPixel {
+            image: image.data[i],
+            mean: all.centre.data[i],
+            own_se: all.own_se.data[i],
+            count: all.count[i],
         };
-        Half(decided.0.iter().map(|&px| at(px)).collect())
+        Half((0..all.count.len()).map(at).collect())
     }
 }
 
@@ -411,6 +439,11 @@ mod tests {
 
     use crate::recon::test_pixel as one;
 
+    /// A half made from the whole film's `image` and `all`.
+    fn half(image: Image, all: Interval, decided: &Decided) -> Half {
+        Half::new(&decided.image(&image), &decided.interval(&all))
+    }
+
     fn interval(mean: f64, se: f64, n: u32) -> Interval {
         Interval {
             centre: one(mean),
@@ -433,7 +466,7 @@ mod tests {
             let all = interval(10.0, 1.0, 2 * n);
             let mut out = one(g);
             let decided = Decided::of(&out, &all, white, Whites::Pixels);
-            let a = halves.map(|(m, se)| Half::new(one(g_halves), interval(m, se, n), &decided));
+            let a = halves.map(|(m, se)| half(one(g_halves), interval(m, se, n), &decided));
             let halves = [&a[0], &a[1]];
             prefer_mean(
                 &mut out,
@@ -481,7 +514,7 @@ mod tests {
             intervals([9.0, 9.0], [1.0, 1.0], 8),
             intervals([11.0, 11.0], [1.0, 1.0], 8),
         ]
-        .map(|a| Half::new(two([20.0, 10.0]), a, &decided));
+        .map(|a| half(two([20.0, 10.0]), a, &decided));
         let decide = |accepted: [u32; 2]| {
             let mut out = two([20.0, 12.0]);
             let halves = [&halves[0], &halves[1]];
@@ -529,7 +562,7 @@ mod tests {
         assert_eq!(decided.0, [0, 20, 39]);
         // ((g − 11)² + (g − 9)²)/2 − 2 = (g − 10)² − 1 a channel.
         let halves = [9.0, 11.0].map(|m| {
-            Half::new(
+            half(
                 film([20.0, 10.0, 17.0], 50.0),
                 intervals(m, 0.0, 8),
                 &decided,
@@ -580,7 +613,7 @@ mod tests {
             let mut out = pixel(g);
             let decided = Decided::of(&out, &all, 1.0, whites);
             let image = pixel([x[0], x[1], 20.0]);
-            let halves = halves.map(|m| Half::new(image.clone(), interval(m, 8), &decided));
+            let halves = halves.map(|m| half(image.clone(), interval(m, 8), &decided));
             let halves = [&halves[0], &halves[1]];
             prefer_mean(&mut out, &all, &all.count, halves, &decided, 1.0, whites);
             out.data[0]

@@ -8,9 +8,8 @@ use std::sync::Arc;
 use super::{Estimators, timed};
 use crate::density::Decision;
 use crate::imagespace::{self, oidn::OidnError};
-use crate::par::prelude::*;
 use crate::recon::confidence::{self, Interval, Moments};
-use crate::recon::held_out::{Half, HalfFold, Whites};
+use crate::recon::held_out::{Decided, Half, HalfFold, Whites};
 use crate::recon::per_pixel::RowBand;
 use crate::recon::statmc::Stats;
 use crate::recon::{Image, energy, guided, held_out, statmc};
@@ -25,8 +24,8 @@ impl Estimators<'_, '_> {
         let (mut out, t) =
             timed(|| self.guided_statmc(denoised, removed, occupancy, accepted, all));
         let (_, t2) = timed(|| {
-            self.held_out(&mut out, Whites::Channels, |second| {
-                Ok::<_, std::convert::Infallible>(self.guided_of_half(second))
+            self.held_out(&mut out, Whites::Channels, |second, decided| {
+                Ok::<_, std::convert::Infallible>(self.guided_of_half(second, decided))
             })
         });
         (Arc::new(out), s + accepted_s + all_s + t + t2)
@@ -36,7 +35,7 @@ impl Estimators<'_, '_> {
     pub(super) fn guided_oidn_image(&self) -> Result<(Arc<Image>, f64), OidnError> {
         let (denoised, s) = self.oidn_mean()?;
         let (mut out, s) = self.guided(denoised, *s);
-        let half = |second| self.guided_oidn_of_half(second);
+        let half = |second, decided: &_| self.guided_oidn_of_half(second, decided);
         let (decided, t) = timed(|| self.held_out(&mut out, Whites::Pixels, half));
         decided?;
         Ok((Arc::new(out), s + t))
@@ -56,27 +55,26 @@ impl Estimators<'_, '_> {
     }
 
     /// `g`, a guided image, with its `whites` decided by the held-out
-    /// halves ([`held_out`]): `make(second)` makes the same image from one
-    /// half's samples alone, with that half's intervals. Nothing is made
-    /// where nothing is white.
+    /// halves ([`held_out`]): `make(second, decided)` makes the same image
+    /// from one half's samples alone, kept with that half's intervals at
+    /// the decided pixels. Nothing is made where nothing is white.
     fn held_out<E>(
         &self,
         g: &mut Image,
         whites: Whites,
-        make: impl Fn(bool) -> Result<(Image, Interval), E>,
+        make: impl Fn(bool, &Decided) -> Result<Half, E>,
     ) -> Result<(), E> {
         if !self.config.held_out {
             return Ok(());
         }
         let (all, _) = self.shared.interval();
         let white = 1.0 / self.config.exposure;
-        let decided = held_out::Decided::of(g, all, white, whites);
+        let decided = Decided::of(g, all, white, whites);
         if decided.is_empty() {
             return Ok(());
         }
-        let half = |second| make(second).map(|(image, all)| Half::new(image, all, &decided));
-        let first = half(false)?;
-        let second = half(true)?;
+        let first = make(false, &decided)?;
+        let second = make(true, &decided)?;
         let (accepted, _) = self.accepted_interval();
         let halves = [&first, &second];
         held_out::prefer_mean(g, all, &accepted.count, halves, &decided, white, whites);
@@ -129,22 +127,23 @@ impl Estimators<'_, '_> {
         (all, accepted)
     }
 
-    /// `guided_oidn`'s image made from one half's samples alone, and the
-    /// half's intervals.
-    fn guided_oidn_of_half(&self, second: bool) -> Result<(Image, Interval), OidnError> {
+    /// `guided_oidn`'s image made from one half's samples alone, kept with
+    /// the half's intervals at the `decided` pixels.
+    fn guided_oidn_of_half(&self, second: bool, decided: &Decided) -> Result<Half, OidnError> {
         let (all, accepted) =
             self.half_intervals(second, 1, Moments::add, |f| &f.accepted, |_, _| {});
-        // Of the accepted samples' interval the guide reads the floors
-        // alone: kept instead of it while OIDN, the run's peak, works.
-        let floors: Vec<[f64; 3]> = (0..all.count.len())
-            .into_par_iter()
-            .map(|px| guided::floor(&accepted, px))
-            .collect();
+        // The guide is read at the decided pixels alone, and OIDN, the
+        // run's peak, needs only the half's means and counts: the rest of
+        // the film's intervals goes before it works.
+        let at = decided.interval(&all);
+        let floors = decided.map(|px| guided::floor(&accepted, px));
         drop(accepted);
-        let d = imagespace::oidn::denoise(&all.centre, &all.count, self.aux)?;
+        let Interval { centre, count, .. } = all;
+        let d = imagespace::oidn::denoise(&centre, &count, self.aux)?;
+        drop((centre, count));
         let white = 1.0 / self.config.exposure;
-        let g = guided::guide_from(&d.image, |px| floors[px], &all, white);
-        Ok((g, all))
+        let g = guided::guide_from(&decided.image(&d.image), |i| floors.data[i], &at, white);
+        Ok(Half::new(&g, &at))
     }
 
     /// `guided`'s image of statmc's `denoised`: the energy the filter
@@ -174,10 +173,10 @@ impl Estimators<'_, '_> {
         g
     }
 
-    /// `guided`'s image made from one half's samples alone, and the half's
-    /// intervals. Its filtered value is the mean of its accepted samples
+    /// `guided`'s image made from one half's samples alone, kept with the
+    /// half's intervals at the `decided` pixels. Its filtered value is the mean of its accepted samples
     /// (the half's mean where it has none: no median fallback).
-    fn guided_of_half(&self, second: bool) -> (Image, Interval) {
+    fn guided_of_half(&self, second: bool, decided: &Decided) -> Half {
         let h = self.shared.header;
         let mut denoised = Image::for_header(h);
         // statmc's window of each band's own rows, from the band's folds.
@@ -202,7 +201,7 @@ impl Estimators<'_, '_> {
         );
         drop(removed);
         let g = self.guided_statmc_of(with_energy, &accepted, &all);
-        (g, all)
+        Half::new(&decided.image(&g), &decided.interval(&all))
     }
 }
 
