@@ -1,0 +1,93 @@
+//! What statmc's window reads of every pixel, made once from the pixels'
+//! statistics, and which pairs of pixels average each other.
+
+use super::welch::{Kernel, agree};
+use super::{NOISIER, Stats};
+use crate::par::prelude::*;
+
+/// What the window reads of every pixel, one array per field: a run of a
+/// row's pixels is one slice of each, so the window's loop along the run
+/// runs in vector registers.
+pub(super) struct Fields {
+    pub(super) n: Vec<u32>,
+    /// Mean of the samples.
+    pub(super) mean: [Vec<f64>; 3],
+    /// Mean of the transformed samples.
+    pub(super) y_mean: [Vec<f64>; 3],
+    /// [`Stats::se2`].
+    pub(super) se2: [Vec<f64>; 3],
+    /// Σ over the channels of `se2`: how noisy the pixel's mean is.
+    pub(super) spread: Vec<f64>,
+    /// [`spread_limits`].
+    pub(super) limit: Vec<f64>,
+}
+
+impl Fields {
+    /// What the test reads of each pixel, made once: s²/n would otherwise
+    /// be divided out again for each of the (2R + 1)² pixels around it.
+    pub(super) fn new<S: AsRef<Stats> + Sync>(stats: &[S], w: usize, ht: usize) -> Fields {
+        let stats: Vec<&Stats> = stats.iter().map(AsRef::as_ref).collect();
+        let channel = |f: &(dyn Fn(&Stats) -> [f64; 3] + Sync)| -> [Vec<f64>; 3] {
+            std::array::from_fn(|c| stats.par_iter().map(|s| f(s)[c]).collect())
+        };
+        let se2 = channel(&|s| s.se2());
+        let spread: Vec<f64> = (0..stats.len())
+            .into_par_iter()
+            .map(|px| se2.iter().map(|c| c[px]).sum())
+            .collect();
+        let n: Vec<u32> = stats.par_iter().map(|s| s.x.n).collect();
+        let limit = spread_limits(&n, &spread, w, ht);
+        Fields {
+            mean: channel(&|s| s.x.mean),
+            y_mean: channel(&|s| s.y_mean),
+            n,
+            se2,
+            spread,
+            limit,
+        }
+    }
+
+    /// Whether pixels p and q (p with two samples or more) average each
+    /// other: q has two samples or more, neither is far noisier
+    /// ([`NOISIER`]), and the test passes on every channel, as [`agree`]
+    /// decides it.
+    pub(super) fn compatible(&self, p: usize, q: usize, k: &Kernel) -> bool {
+        let (spread, limit) = (&self.spread, &self.limit);
+        if self.n[q] < 2 || spread[q] > limit[p] || spread[p] > limit[q] {
+            return false;
+        }
+        let df = (self.n[p] + self.n[q] - 2) as usize;
+        (0..3).fold(true, |all, c| {
+            let (y, se2) = (&self.y_mean[c], &self.se2[c]);
+            all & agree(y[p], y[q], se2[p] + se2[q], k.t[df], k.t2[df])
+        })
+    }
+}
+
+/// Per pixel, the largest spread a pixel it averages with may have:
+/// [`NOISIER`] × the larger of the pixel's spread and the median spread of
+/// its 3 × 3 neighbourhood (same frame, pixels with two samples or more).
+fn spread_limits(n: &[u32], spread: &[f64], w: usize, ht: usize) -> Vec<f64> {
+    let mut limit = vec![0.0; n.len()];
+    limit.par_iter_mut().enumerate().for_each(|(px, l)| {
+        let (frame, i) = (px / (w * ht), px % (w * ht));
+        let (x, y) = (i % w, i / w);
+        let base = frame * w * ht;
+        let mut around = [0.0f64; 9];
+        let mut count = 0;
+        for ny in y.saturating_sub(1)..(y + 2).min(ht) {
+            for nx in x.saturating_sub(1)..(x + 2).min(w) {
+                let q = base + ny * w + nx;
+                if n[q] >= 2 {
+                    around[count] = spread[q];
+                    count += 1;
+                }
+            }
+        }
+        let around = &mut around[..count];
+        around.sort_by(f64::total_cmp);
+        let median = around.get(count / 2).copied().unwrap_or(0.0);
+        *l = NOISIER * spread[px].max(median);
+    });
+    limit
+}

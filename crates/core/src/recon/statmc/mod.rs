@@ -1,0 +1,288 @@
+//! A statistical Monte Carlo denoiser after Sakai et al., *A Statistical
+//! Approach to Monte Carlo Denoising* (SIGGRAPH Asia 2024): a pixel
+//! averages those neighbours whose samples a Welch t-test cannot tell
+//! from its own, and no others (docs/filter.md §3, F11). The dump gives
+//! every pixel's exact sample statistics, which is what the test needs;
+//! fed with the filter's accepted samples, an outlier neither widens a
+//! pixel's variance nor drags its mean.
+//!
+//! Per pixel and channel, the samples' mean x̄ (what is averaged) and, for
+//! the test, the mean ȳ and unbiased variance s² of their Box-Cox
+//! transform y = (x^λ − 1)/λ with λ = 1/2 (radiance is skewed; the
+//! transform brings a pixel's samples nearer the normal the test assumes;
+//! negative values count as 0). Pixel q is compatible with p when, on
+//! every channel, |ȳ_p − ȳ_q| ≤ t(α, ν)·√(s_p²/n_p + s_q²/n_q), with
+//! α = 0.05 two-sided and ν = n_p + n_q − 2 degrees of freedom (at 0.005
+//! the test merged a highlight into its neighbours more often: docs/RESULTS.md,
+//! "The guided image"). The
+//! output is the mean of the compatible pixels of the (2R + 1)² window,
+//! each weighted by its sample count and a spatial Gaussian of σ = R/2:
+//! the samples of every compatible pixel pooled. A pixel with fewer than
+//! two samples keeps its mean. Deterministic and thread-invariant: each
+//! output pixel is one sum in a fixed order.
+//!
+//! Two pixels the test cannot tell apart still do not average each other
+//! when one is far noisier: its s²/n (summed over the channels) above
+//! [`NOISIER`] times the other's, each pixel's taken as at least the
+//! median of its 3 × 3 neighbourhood's. A pixel holding an outlier the
+//! filter accepted has so wide a variance that the test alone passes it
+//! into every neighbour's average, each of which counts its samples at
+//! full weight: its energy is counted once per neighbour (on a synthetic
+//! field with 2 % fireflies at 8 spp, 7.8× the reference's energy in all).
+//! Left out both ways, the pixel keeps its own samples' mean and its
+//! energy stays counted once. The neighbourhood's median keeps a pixel
+//! whose few samples all missed a rare bright path, and so look quiet,
+//! averaging with its neighbours. An addition to Sakai et al.
+//! (docs/RESULTS.md, "The guided image").
+
+use super::Image;
+use super::confidence::Moments;
+use super::per_pixel;
+use crate::dump::{Header, Record};
+
+/// The window's radius R, in pixels.
+pub const RADIUS: usize = 8;
+/// Box-Cox λ.
+const LAMBDA: f64 = 0.5;
+/// Two-sided significance of the test.
+const ALPHA: f64 = 0.05;
+/// Two pixels average each other only when neither's s²/n exceeds this
+/// many times the other's (or the other's neighbourhood median): standard
+/// errors within 4× (docs/RESULTS.md, "The guided image").
+pub const NOISIER: f64 = 16.0;
+
+mod fields;
+mod run;
+mod welch;
+
+/// [`run::pair_weights_portable`] four pairs at a time in AVX2 registers: the
+/// same comparisons (ordered, as Rust's on f64) and the same products in
+/// the same order, so the same bits. [`Stats::add`] with its three
+/// channels in one register.
+#[cfg(target_arch = "x86_64")]
+mod avx2;
+
+use fields::Fields;
+use run::{Pairs, pair_weights_portable, window};
+use welch::{Kernel, MARGIN, TINY};
+
+/// One pixel's statistics: the moments of its samples, which the
+/// confidence interval of the same samples reads too, and those of their
+/// Box-Cox transform.
+#[derive(Clone, Copy, Default)]
+pub(crate) struct Stats {
+    x: Moments,
+    /// Mean and Σ(y − ȳ)² of the Box-Cox transformed samples (Welford).
+    y_mean: [f64; 3],
+    y_m2: [f64; 3],
+}
+
+impl AsRef<Stats> for Stats {
+    fn as_ref(&self) -> &Stats {
+        self
+    }
+}
+
+impl AsRef<Moments> for Stats {
+    fn as_ref(&self) -> &Moments {
+        &self.x
+    }
+}
+
+impl Stats {
+    fn add(&mut self, x: [f64; 3]) {
+        self.x.add(x);
+        let n = self.x.n as f64;
+        for (c, x) in x.into_iter().enumerate() {
+            let y = box_cox(x);
+            let d = y - self.y_mean[c];
+            self.y_mean[c] += d / n;
+            self.y_m2[c] += d * (y - self.y_mean[c]);
+        }
+    }
+
+    /// s²/n of the transformed mean, per channel.
+    fn se2(&self) -> [f64; 3] {
+        let n = self.x.n as f64;
+        self.y_m2.map(|m| m / (n - 1.0) / n)
+    }
+}
+
+/// λ = 1/2 makes x^λ the square root, correctly rounded, which glibc's
+/// `powf(0.5)` matched bit for bit on every f32 sample (docs/BENCHMARKS.md,
+/// "statmc's square root") at a higher cost.
+fn box_cox(x: f64) -> f64 {
+    const { assert!(LAMBDA == 0.5) };
+    (x.max(0.0).sqrt() - 1.0) / LAMBDA
+}
+
+/// The denoised image of the valid samples `keep(i)` picks (record i):
+/// the accepted ones.
+pub fn denoise(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool + Sync) -> Image {
+    // The statistics go once the window's fields are made.
+    let window = Window::new(&stats_of(records, h, keep), h);
+    window.denoise(h)
+}
+
+/// What the window reads, made from the pixels' statistics ([`stats_of`]),
+/// which it no longer needs.
+pub(crate) struct Window {
+    fields: Fields,
+}
+
+impl Window {
+    pub(crate) fn new<S: AsRef<Stats> + Sync>(stats: &[S], h: &Header) -> Window {
+        let (w, ht) = (h.width as usize, h.height as usize);
+        Window {
+            fields: Fields::new(stats, w, ht),
+        }
+    }
+
+    /// The denoised image.
+    pub(crate) fn denoise(&self, h: &Header) -> Image {
+        let mut img = Image::for_header(h);
+        self.denoise_into(h, 0, &mut img.data);
+        img
+    }
+
+    /// The denoised pixels of the film `h` that `out` holds, from pixel
+    /// `first` (both whole rows) on: a band's own rows of the window made
+    /// from the band's statistics with [`HALO`] rows either side are the
+    /// whole film's.
+    pub(crate) fn denoise_into(&self, h: &Header, first: usize, out: &mut [[f64; 3]]) {
+        let kernel = Kernel::new(self.fields.n.iter().copied().max().unwrap_or(0));
+        window(&self.fields, &kernel, h, first, out);
+    }
+}
+
+/// Rows either side of a pixel that its window reads, with the 3 × 3
+/// neighbourhoods of [`spread_limits`] at the window's edge.
+pub(crate) const HALO: usize = RADIUS + 1;
+
+/// [`Stats`]' update: in AVX2 where the CPU has it (the same bits).
+pub(crate) fn stats_adder() -> fn(&mut Stats, [f64; 3]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: only returned where the CPU has AVX2 (checked just above).
+        return |s, x| unsafe { avx2::add(s, x) };
+    }
+    Stats::add
+}
+
+/// Every pixel's statistics of the valid samples `keep(i)` picks, in
+/// file order, on every thread of the pool.
+pub(crate) fn stats_of(
+    records: &[Record],
+    h: &Header,
+    keep: impl Fn(usize) -> bool + Sync,
+) -> Vec<Stats> {
+    let bands = crate::par::current_num_threads();
+    per_pixel::fold(records, h, bands, keep, stats_adder())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::recon::test_header;
+
+    /// Two flat halves of a film: each pixel averages its own half only
+    /// (the test tells 1 from 5 with 16 samples of spread 0.1), so the
+    /// edge stays sharp and the noise drops.
+    #[test]
+    fn averages_within_a_region_and_not_across_an_edge() {
+        let h = test_header(8, 4);
+        let mut recs = Vec::new();
+        for y in 0..4 {
+            for x in 0..8 {
+                let level = if x < 4 { 1.0 } else { 5.0 };
+                for s in 0..16 {
+                    let v = level + 0.1 * ((s * 7 + x * 3 + y) % 5) as f32 - 0.2;
+                    recs.push(Record::new(x as f32 + 0.5, y as f32 + 0.5, 0.0, [v; 3]));
+                }
+            }
+        }
+        let img = denoise(&recs, &h, |_| true);
+        for y in 0..4 {
+            for x in 0..8 {
+                let want = if x < 4 { 1.0 } else { 5.0 };
+                let got = img.data[y * 8 + x][0];
+                assert!((got - want).abs() < 0.05, "({x}, {y}): {got}");
+            }
+        }
+    }
+
+    /// A pixel holding an outlier passes every neighbour's test (its
+    /// variance is wide) but, far noisier, averages with none of them:
+    /// its energy is counted once, in its own pixel.
+    #[test]
+    fn a_far_noisier_neighbour_is_left_out() {
+        let h = test_header(5, 5);
+        let mut recs = Vec::new();
+        for y in 0..5 {
+            for x in 0..5 {
+                for s in 0..8 {
+                    let mut v = 1.0 + 0.05 * ((s * 3 + x + 2 * y) % 4) as f32;
+                    if (x, y, s) == (2, 2, 0) {
+                        v = 500.0;
+                    }
+                    recs.push(Record::new(x as f32 + 0.5, y as f32 + 0.5, 0.0, [v; 3]));
+                }
+            }
+        }
+        let img = denoise(&recs, &h, |_| true);
+        for (px, v) in img.data.iter().enumerate() {
+            if px != 12 {
+                assert!((v[0] - 1.075).abs() < 0.05, "pixel {px}: {v:?}");
+            }
+        }
+        let own: f64 = recs[12 * 8..13 * 8].iter().map(|r| r.r as f64).sum::<f64>() / 8.0;
+        assert!(
+            (img.data[12][0] - own).abs() < 1e-9,
+            "{:?} against {own}",
+            img.data[12]
+        );
+    }
+
+    /// The vector add gives the scalar add's statistics bit for bit, over
+    /// runs of samples from negative and zero (either sign) through
+    /// subnormal to far above the white.
+    #[test]
+    fn the_vector_add_is_the_scalar_add() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            eprintln!("SKIPPED: no AVX2 on this CPU");
+            return;
+        }
+        let mut unit = crate::synth::test_units(17);
+        let values = [0.0, -0.0, -0.3, 1e-310, 3e-8, 0.2, 1.0, 7.5, 4e4, 3e38];
+        let mut checked = 0;
+        for _ in 0..500 {
+            let (mut scalar, mut vector) = (Stats::default(), Stats::default());
+            for _ in 0..(unit() * 70.0) as usize {
+                let mut c = || values[(unit() * values.len() as f64) as usize] * (0.5 + unit());
+                let x = [c(), c(), c()];
+                scalar.add(x);
+                // SAFETY: the CPU has AVX2 (checked above).
+                unsafe { avx2::add(&mut vector, x) };
+                let bits = |s: &Stats| {
+                    let f = [s.x.mean, s.x.m2, s.y_mean, s.y_m2];
+                    (s.x.n, f.map(|a| a.map(f64::to_bits)))
+                };
+                assert_eq!(bits(&scalar), bits(&vector), "after {x:?}");
+                checked += 1;
+            }
+        }
+        assert!(checked > 10_000, "{checked}");
+    }
+
+    /// An outlier the caller leaves out does not move its pixel.
+    #[test]
+    fn left_out_samples_do_not_count() {
+        let h = test_header(1, 1);
+        let mut recs: Vec<Record> = (0..8)
+            .map(|i| Record::new(0.5, 0.5, 0.0, [1.0 + 0.01 * i as f32; 3]))
+            .collect();
+        recs.push(Record::new(0.5, 0.5, 0.0, [1000.0; 3]));
+        let img = denoise(&recs, &h, |i| i < 8);
+        assert!((img.data[0][0] - 1.035).abs() < 1e-6, "{:?}", img.data[0]);
+    }
+}
