@@ -20,7 +20,7 @@ fn main() -> anyhow::Result<()> {
     let pool = pipeline::thread_pool(2)?;
     for round in 0..rounds {
         let t = Instant::now();
-        let img = pool.install(|| statmc::denoise(records, &h, |_| true));
+        let img = pool.install(|| statmc::denoise(records, &h, |_| true, None));
         let seconds = t.elapsed().as_secs_f64();
         let sum: f64 = img.data.iter().flatten().sum();
         println!("round {round}: {seconds:.3} s (Σ {sum:.6e})");

@@ -183,12 +183,12 @@ enum Command {
         /// Reference EXR (for an animation, REF.exr names REF_0000.exr, …).
         #[arg(long)]
         reference: Option<PathBuf>,
-        /// The renderer's albedo EXR, OIDN's auxiliary input (builds with
-        /// OIDN; an animation's as for --reference).
+        /// The renderer's albedo EXR: OIDN's auxiliary input, and which
+        /// pixels statmc averages (an animation's as for --reference).
         #[arg(long)]
         albedo: Option<PathBuf>,
-        /// The renderer's normal EXR, OIDN's second auxiliary input (needs
-        /// --albedo).
+        /// The renderer's normal EXR, OIDN's and statmc's as the albedo
+        /// (needs --albedo).
         #[arg(long)]
         normal: Option<PathBuf>,
         /// Worker threads (default: one per core).

@@ -265,7 +265,7 @@ fn a_found_oidn_makes_guided_oidn_the_recommended_image() {
 /// Without a library (`OIDN_DIR` naming a folder without one) every
 /// OIDN option is refused in one line that says where it looked, and the
 /// default run recommends `guided`, made with the statistical denoiser,
-/// and says so.
+/// and says so; the renderer's albedo is taken, and guides statmc.
 #[test]
 fn without_oidn_its_options_are_refused_and_guided_is_recommended() {
     let tmp = tempfile::tempdir().unwrap();
@@ -282,7 +282,6 @@ fn without_oidn_its_options_are_refused_and_guided_is_recommended() {
         ["--methods", "oidn"],
         ["--methods", "oidn_ci"],
         ["--denoise", "oidn"],
-        ["--albedo", "albedo.exr"],
     ] {
         let o = pathdensity(s(&empty))
             .args(["filter", s(&dump), "-o", s(&tmp.path().join("o"))])
@@ -315,4 +314,25 @@ fn without_oidn_its_options_are_refused_and_guided_is_recommended() {
     );
     assert!(table.contains(&format!("denoiser: {denoiser}")), "{table}");
     assert!(!out.join("guided_oidn.exr").exists() && out.join("guided.exr").exists());
+
+    // A checkered albedo: no two neighbours alike.
+    let (w, h) = (12, 10);
+    let mut albedo = pathdensity::image::Image::new(w, h, 1);
+    for (p, px) in albedo.data.iter_mut().enumerate() {
+        *px = [if (p % w + p / w) % 2 == 0 { 0.2 } else { 0.9 }; 3];
+    }
+    pathdensity::io::exr::write_image(tmp.path(), "albedo", &albedo).unwrap();
+    let guided = out.join("guided.exr");
+    let out = tmp.path().join("a");
+    let o = pathdensity(s(&empty))
+        .args(["filter", s(&dump), "-o", s(&out), "--no-html"])
+        .args(["--albedo", s(&tmp.path().join("albedo.exr"))])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_ne!(
+        std::fs::read(&guided).unwrap(),
+        std::fs::read(out.join("guided.exr")).unwrap(),
+        "the albedo guides statmc"
+    );
 }

@@ -29,8 +29,8 @@ pub struct FilterOptions {
     pub out_dir: PathBuf,
     pub config: FilterConfig,
     pub reference: Option<PathBuf>,
-    /// The renderer's albedo and normal images, OIDN's auxiliary inputs
-    /// (a normal only with an albedo).
+    /// The renderer's albedo and normal images: OIDN's auxiliary inputs
+    /// and statmc's guide (a normal only with an albedo).
     pub albedo: Option<PathBuf>,
     pub normal: Option<PathBuf>,
     /// Worker threads; 0 means one per core.
@@ -205,18 +205,18 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
     Ok(report)
 }
 
-/// OIDN's auxiliary images, read with `film` (sized to the dump's film).
+/// The renderer's albedo and normal, OIDN's auxiliary images and statmc's
+/// guide, read with `film` (sized to the dump's film).
 fn read_aux(
     opts: &FilterOptions,
     film: impl Fn(&PathBuf) -> std::result::Result<Image, pathdensity_format::Error>,
 ) -> Result<Option<Aux>> {
     let Some(albedo) = &opts.albedo else {
         if opts.normal.is_some() {
-            bail!("--normal needs --albedo (OIDN takes a normal only with an albedo)");
+            bail!("--normal needs --albedo (a normal is taken only with an albedo)");
         }
         return Ok(None);
     };
-    pipeline::check_aux()?;
     let albedo = film(albedo)?;
     let normal = opts.normal.as_ref().map(film).transpose()?;
     Ok(Some(Aux::new(&albedo, normal.as_ref())))

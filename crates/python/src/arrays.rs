@@ -9,7 +9,6 @@ use numpy::{
 use pyo3::prelude::*;
 
 use pathdensity_core::imagespace::oidn::Aux;
-use pathdensity_core::pipeline;
 use pathdensity_format::dump::{Header, Record};
 use pathdensity_format::image::{Image, stored};
 
@@ -134,12 +133,11 @@ pub(crate) fn aux_of(
     let Some(albedo) = albedo else {
         if normal.is_some() {
             return Err(value_error(
-                "normal needs albedo (OIDN takes a normal only with an albedo)",
+                "normal needs albedo (a normal is taken only with an albedo)",
             ));
         }
         return Ok(None);
     };
-    pipeline::check_aux().map_err(|e| value_error(e.to_string()))?;
     let albedo = film_of("albedo", albedo, h)?;
     let normal = normal.map(|n| film_of("normal", n, h)).transpose()?;
     Ok(Some(Aux::new(&albedo, normal.as_ref())))

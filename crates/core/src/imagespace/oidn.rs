@@ -50,6 +50,14 @@ impl Aux {
             normal: normal.map(oidn_values),
         }
     }
+
+    pub(crate) fn albedo(&self) -> &[f32] {
+        &self.albedo
+    }
+
+    pub(crate) fn normal(&self) -> Option<&[f32]> {
+        self.normal.as_deref()
+    }
 }
 
 /// An auxiliary image's values as OIDN takes them: RGB f32, row-major,

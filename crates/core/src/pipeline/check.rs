@@ -21,17 +21,6 @@ pub fn resolve_white(
     }
 }
 
-/// OIDN's auxiliary inputs (the renderer's albedo and normal) are refused,
-/// as the `albedo` field, where no OIDN is found to take them.
-pub fn check_aux() -> Result<(), ConfigError> {
-    crate::imagespace::oidn::library()
-        .map(|_| ())
-        .map_err(|why| ConfigError {
-            field: "albedo",
-            problem: format!("is OIDN's input, and {why} (README, \"OIDN\")"),
-        })
-}
-
 /// Checks `config` against the dump before the replay: k below the number
 /// of valid samples (else every sample is rejected), joint coordinates
 /// that stay finite in f32 on this film. Returns the number of valid

@@ -328,9 +328,12 @@ impl<'s, 'a> Estimators<'s, 'a> {
             .expect("an image that needs the decisions is made with them");
         self.statmc.get_or_init(|| {
             let (img, s) = timed(|| {
-                statmc::denoise(self.shared.records, self.shared.header, |i| {
-                    Decision::accepted(decisions[i])
-                })
+                statmc::denoise(
+                    self.shared.records,
+                    self.shared.header,
+                    |i| Decision::accepted(decisions[i]),
+                    self.guide(),
+                )
             });
             (Arc::new(img), self.core.replay_seconds + s)
         })
@@ -348,7 +351,7 @@ impl<'s, 'a> Estimators<'s, 'a> {
             timed(|| statmc::stats_of(records, h, |i| Decision::accepted(decisions[i])));
         let ((interval, ti), (window, tw)) = crate::par::join(
             || timed(|| confidence::from_moments(&stats, h, self.config.guide_z)),
-            || timed(|| statmc::Window::new(&stats, h)),
+            || timed(|| statmc::Window::new(&stats, h, self.guide())),
         );
         // The statistics are read: gone before the window's longest part.
         drop(stats);
@@ -358,6 +361,11 @@ impl<'s, 'a> Estimators<'s, 'a> {
         let _ = self.accepted_interval.set((interval, s + ti));
         let seconds = self.core.replay_seconds + s + tw;
         let _ = self.statmc.set((Arc::new(img), seconds));
+    }
+
+    /// statmc's guide: the renderer's albedo and normal, where given.
+    fn guide(&self) -> Option<statmc::Guide<'s>> {
+        self.aux.map(|a| statmc::Guide::new(a.albedo(), a.normal()))
     }
 
     /// The accepted samples' intervals, made once, and their seconds.

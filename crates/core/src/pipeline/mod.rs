@@ -21,7 +21,7 @@ use crate::metrics::{self, ImageMetrics};
 use crate::par::prelude::*;
 use crate::progress::Progress;
 use crate::recon::{self, Image, Reconstruction};
-pub use check::{check, check_aux, check_counted, k_fits, resolve_white};
+pub use check::{check, check_counted, k_fits, resolve_white};
 use estimate::{Core, Estimators, Shared};
 
 /// Why a run could not start.

@@ -395,7 +395,7 @@ mod tests {
             let add = statmc::stats_adder();
             let film = whole(&records, &h, true, accepted, add);
             let interval = confidence::from_moments_of(&film, |f| &f.all, &h, 3.0);
-            let denoised = statmc::Window::new(&film, &h).denoise(&h);
+            let denoised = statmc::Window::new(&film, &h, None).denoise(&h);
 
             // Bands of 2 rows (a budget of two rows of folds), the halos as
             // the halves' (one row for the intervals, HALO for the window),
@@ -413,7 +413,7 @@ mod tests {
                     let i = confidence::from_moments_of(folds, |f| &f.all, bh, 3.0);
                     banded.put(band, &i);
                     let out = band.own_of(&mut banded_denoised.data);
-                    statmc::Window::new(folds, bh).denoise_into(bh, band.own.start, out);
+                    statmc::Window::new(folds, bh, None).denoise_into(bh, band.own.start, out);
                 });
                 assert!(own.iter().all(|&n| n == 1));
                 (banded, banded_denoised)

@@ -138,7 +138,14 @@ impl Estimators<'_, '_> {
         let at = decided.interval(&all);
         let floors = decided.map(|px| guided::floor(&accepted, px));
         drop(accepted);
-        let Interval { centre, count, .. } = all;
+        let Interval {
+            centre,
+            count,
+            half_width,
+            own_se,
+            ..
+        } = all;
+        drop((half_width, own_se));
         let d = imagespace::oidn::denoise(&centre, &count, self.aux)?;
         drop((centre, count));
         let white = 1.0 / self.config.exposure;
@@ -174,15 +181,18 @@ impl Estimators<'_, '_> {
     }
 
     /// `guided`'s image made from one half's samples alone, kept with the
-    /// half's intervals at the `decided` pixels. Its filtered value is the mean of its accepted samples
-    /// (the half's mean where it has none: no median fallback).
+    /// half's intervals at the `decided` pixels. Its filtered value is the
+    /// mean of its accepted samples (the half's mean where it has none: no
+    /// median fallback).
     fn guided_of_half(&self, second: bool, decided: &Decided) -> Half {
         let h = self.shared.header;
         let mut denoised = Image::for_header(h);
         // statmc's window of each band's own rows, from the band's folds.
+        let guide = self.guide();
         let denoise = |band: &RowBand, folds: &[HalfFold<Stats>]| {
             let first = band.own.start;
-            let window = statmc::Window::new(folds, &band.header);
+            let g = guide.map(|g| g.of(band.pixels.clone()));
+            let window = statmc::Window::new(folds, &band.header, g);
             window.denoise_into(&band.header, first, band.own_of(&mut denoised.data));
         };
         let add = statmc::stats_adder();

@@ -1,4 +1,7 @@
-use super::{Fields, Kernel, LAMBDA, MARGIN, Pairs, Stats, TINY};
+use super::fields::Fields;
+use super::run::{Pairs, pair_weights_portable};
+use super::welch::{Kernel, MARGIN, TINY};
+use super::{LAMBDA, Stats};
 use std::arch::x86_64::*;
 
 /// [`Stats::add`], each channel a lane: the same operations in the
@@ -45,7 +48,7 @@ pub(super) fn pair_weights(f: &Fields, k: &Kernel, pairs: &Pairs, wq: &mut [f64]
     // Sample counts index t² as 32-bit integers.
     let last = k.t2.len() - 1;
     if last > i32::MAX as usize {
-        return super::pair_weights_portable(f, k, pairs, wq, 0);
+        return pair_weights_portable(f, k, pairs, wq, 0);
     }
     let (fields, end) = (Slices::new(f, p, q, len), len / 4 * 4);
     let mut undecided = _mm256_setzero_pd();
@@ -55,7 +58,7 @@ pub(super) fn pair_weights(f: &Fields, k: &Kernel, pairs: &Pairs, wq: &mut [f64]
         wq[i..i + 4].copy_from_slice(&w);
         undecided = _mm256_or_pd(undecided, u);
     }
-    let tail = super::pair_weights_portable(f, k, pairs, wq, end);
+    let tail = pair_weights_portable(f, k, pairs, wq, end);
     _mm256_movemask_pd(undecided) != 0 || tail
 }
 

@@ -2,13 +2,13 @@
 //! statistics, and which pairs of pixels average each other.
 
 use super::welch::{Kernel, agree};
-use super::{NOISIER, Stats};
+use super::{Guide, NOISIER, Stats};
 use crate::par::prelude::*;
 
 /// What the window reads of every pixel, one array per field: a run of a
 /// row's pixels is one slice of each, so the window's loop along the run
 /// runs in vector registers.
-pub(super) struct Fields {
+pub(super) struct Fields<'a> {
     pub(super) n: Vec<u32>,
     /// Mean of the samples.
     pub(super) mean: [Vec<f64>; 3],
@@ -20,12 +20,19 @@ pub(super) struct Fields {
     pub(super) spread: Vec<f64>,
     /// [`spread_limits`].
     pub(super) limit: Vec<f64>,
+    /// The renderer's features, where given.
+    pub(super) guide: Option<Guide<'a>>,
 }
 
-impl Fields {
+impl<'a> Fields<'a> {
     /// What the test reads of each pixel, made once: s²/n would otherwise
     /// be divided out again for each of the (2R + 1)² pixels around it.
-    pub(super) fn new<S: AsRef<Stats> + Sync>(stats: &[S], w: usize, ht: usize) -> Fields {
+    pub(super) fn new<S: AsRef<Stats> + Sync>(
+        stats: &[S],
+        w: usize,
+        ht: usize,
+        guide: Option<Guide<'a>>,
+    ) -> Fields<'a> {
         let stats: Vec<&Stats> = stats.iter().map(AsRef::as_ref).collect();
         let channel = |f: &(dyn Fn(&Stats) -> [f64; 3] + Sync)| -> [Vec<f64>; 3] {
             std::array::from_fn(|c| stats.par_iter().map(|s| f(s)[c]).collect())
@@ -44,6 +51,7 @@ impl Fields {
             se2,
             spread,
             limit,
+            guide,
         }
     }
 
@@ -67,7 +75,7 @@ impl Fields {
 /// Per pixel, the largest spread a pixel it averages with may have:
 /// [`NOISIER`] × the larger of the pixel's spread and the median spread of
 /// its 3 × 3 neighbourhood (same frame, pixels with two samples or more).
-fn spread_limits(n: &[u32], spread: &[f64], w: usize, ht: usize) -> Vec<f64> {
+pub(super) fn spread_limits(n: &[u32], spread: &[f64], w: usize, ht: usize) -> Vec<f64> {
     let mut limit = vec![0.0; n.len()];
     limit.par_iter_mut().enumerate().for_each(|(px, l)| {
         let (frame, i) = (px / (w * ht), px % (w * ht));

@@ -63,8 +63,8 @@ mod welch;
 mod avx2;
 
 use fields::Fields;
-use run::{Pairs, pair_weights_portable, window};
-use welch::{Kernel, MARGIN, TINY};
+use run::window;
+use welch::Kernel;
 
 /// One pixel's statistics: the moments of its samples, which the
 /// confidence interval of the same samples reads too, and those of their
@@ -118,23 +118,32 @@ fn box_cox(x: f64) -> f64 {
 
 /// The denoised image of the valid samples `keep(i)` picks (record i):
 /// the accepted ones.
-pub fn denoise(records: &[Record], h: &Header, keep: impl Fn(usize) -> bool + Sync) -> Image {
+pub fn denoise(
+    records: &[Record],
+    h: &Header,
+    keep: impl Fn(usize) -> bool + Sync,
+    guide: Option<Guide>,
+) -> Image {
     // The statistics go once the window's fields are made.
-    let window = Window::new(&stats_of(records, h, keep), h);
+    let window = Window::new(&stats_of(records, h, keep), h, guide);
     window.denoise(h)
 }
 
 /// What the window reads, made from the pixels' statistics ([`stats_of`]),
 /// which it no longer needs.
-pub(crate) struct Window {
-    fields: Fields,
+pub(crate) struct Window<'a> {
+    fields: Fields<'a>,
 }
 
-impl Window {
-    pub(crate) fn new<S: AsRef<Stats> + Sync>(stats: &[S], h: &Header) -> Window {
+impl<'a> Window<'a> {
+    pub(crate) fn new<S: AsRef<Stats> + Sync>(
+        stats: &[S],
+        h: &Header,
+        guide: Option<Guide<'a>>,
+    ) -> Window<'a> {
         let (w, ht) = (h.width as usize, h.height as usize);
         Window {
-            fields: Fields::new(stats, w, ht),
+            fields: Fields::new(stats, w, ht, guide),
         }
     }
 
@@ -155,8 +164,58 @@ impl Window {
     }
 }
 
+/// The renderer's first-hit albedo, and its normal where given, RGB f32
+/// a pixel, frame after frame (OIDN's auxiliary images): two compatible
+/// pixels p, q average each other with the further weight
+/// exp(−|a_p − a_q|²/2σ_a² − |n_p − n_q|²/2σ_n²), as Sakai et al.'s
+/// released code weighs its feature buffers. The test cannot tell a
+/// texture's or an edge's two sides apart when their radiance differs by
+/// less than the samples' noise; the features can.
+#[derive(Clone, Copy)]
+pub struct Guide<'a> {
+    albedo: &'a [f32],
+    normal: Option<&'a [f32]>,
+}
+
+/// σ_a of the albedo's weight: the authors' released configuration's.
+pub const ALBEDO_SD: f64 = 0.02;
+/// σ_n of the normal's weight: the authors' released configuration's.
+pub const NORMAL_SD: f64 = 0.1;
+
+impl<'a> Guide<'a> {
+    /// The features of a film's pixels, three values a pixel each.
+    pub fn new(albedo: &'a [f32], normal: Option<&'a [f32]>) -> Guide<'a> {
+        debug_assert!(normal.is_none_or(|n| n.len() == albedo.len()));
+        Guide { albedo, normal }
+    }
+
+    /// The features of the film's pixels `pixels` alone.
+    pub(crate) fn of(self, pixels: std::ops::Range<usize>) -> Guide<'a> {
+        let at = |v: &'a [f32]| &v[3 * pixels.start..3 * pixels.end];
+        Guide {
+            albedo: at(self.albedo),
+            normal: self.normal.map(at),
+        }
+    }
+
+    /// Pixels p and q's feature weight, 1 where their features are equal.
+    #[inline]
+    pub(super) fn weight(&self, p: usize, q: usize) -> f64 {
+        let d2 = |v: &[f32]| -> f64 {
+            (0..3)
+                .map(|c| (f64::from(v[3 * p + c]) - f64::from(v[3 * q + c])).powi(2))
+                .sum()
+        };
+        let mut e = d2(self.albedo) / (2.0 * ALBEDO_SD * ALBEDO_SD);
+        if let Some(n) = self.normal {
+            e += d2(n) / (2.0 * NORMAL_SD * NORMAL_SD);
+        }
+        (-e).exp()
+    }
+}
+
 /// Rows either side of a pixel that its window reads, with the 3 × 3
-/// neighbourhoods of [`spread_limits`] at the window's edge.
+/// neighbourhoods of [`fields::spread_limits`] at the window's edge.
 pub(crate) const HALO: usize = RADIUS + 1;
 
 /// [`Stats`]' update: in AVX2 where the CPU has it (the same bits).
@@ -201,7 +260,7 @@ mod tests {
                 }
             }
         }
-        let img = denoise(&recs, &h, |_| true);
+        let img = denoise(&recs, &h, |_| true, None);
         for y in 0..4 {
             for x in 0..8 {
                 let want = if x < 4 { 1.0 } else { 5.0 };
@@ -229,7 +288,7 @@ mod tests {
                 }
             }
         }
-        let img = denoise(&recs, &h, |_| true);
+        let img = denoise(&recs, &h, |_| true, None);
         for (px, v) in img.data.iter().enumerate() {
             if px != 12 {
                 assert!((v[0] - 1.075).abs() < 0.05, "pixel {px}: {v:?}");
@@ -274,6 +333,55 @@ mod tests {
         assert!(checked > 10_000, "{checked}");
     }
 
+    /// Two regions whose radiance differs by less than the test can see
+    /// at 8 samples a pixel average each other without a guide; their
+    /// albedo keeps them apart, and an albedo equal everywhere changes
+    /// no bit.
+    #[test]
+    fn the_albedo_keeps_apart_what_the_test_cannot() {
+        let (w, ht) = (16, 6);
+        let h = test_header(w as u32, ht as u32);
+        let mut unit = crate::synth::test_units(3);
+        let mut recs = Vec::new();
+        for y in 0..ht {
+            for x in 0..w {
+                let level = if x < w / 2 { 1.0 } else { 1.15 };
+                for _ in 0..8 {
+                    let v = level * (0.6 + 0.8 * unit() as f32);
+                    recs.push(Record::new(x as f32 + 0.5, y as f32 + 0.5, 0.0, [v; 3]));
+                }
+            }
+        }
+        let albedo: Vec<f32> = (0..w * ht)
+            .flat_map(|p| [if p % w < w / 2 { 0.2 } else { 0.8 }; 3])
+            .collect();
+        let flat = vec![0.5f32; 3 * w * ht];
+        let plain = denoise(&recs, &h, |_| true, None);
+        let guided = denoise(&recs, &h, |_| true, Some(Guide::new(&albedo, None)));
+        let same = denoise(&recs, &h, |_| true, Some(Guide::new(&flat, Some(&flat))));
+        assert_eq!(plain, same);
+        // Each side's mean of its pixels, beside the edge and far from it.
+        let side = |img: &Image, xs: std::ops::Range<usize>| -> f64 {
+            let n = (xs.len() * ht) as f64;
+            (0..ht)
+                .flat_map(|y| xs.clone().map(move |x| y * w + x))
+                .map(|p| img.data[p][0])
+                .sum::<f64>()
+                / n
+        };
+        let step = |img: &Image| side(img, w / 2..w / 2 + 1) - side(img, w / 2 - 1..w / 2);
+        assert!(
+            step(&plain) < 0.08,
+            "the test alone blurs the edge: {}",
+            step(&plain)
+        );
+        assert!(
+            step(&guided) > 0.1,
+            "the albedo keeps it: {}",
+            step(&guided)
+        );
+    }
+
     /// An outlier the caller leaves out does not move its pixel.
     #[test]
     fn left_out_samples_do_not_count() {
@@ -282,7 +390,7 @@ mod tests {
             .map(|i| Record::new(0.5, 0.5, 0.0, [1.0 + 0.01 * i as f32; 3]))
             .collect();
         recs.push(Record::new(0.5, 0.5, 0.0, [1000.0; 3]));
-        let img = denoise(&recs, &h, |i| i < 8);
+        let img = denoise(&recs, &h, |i| i < 8, None);
         assert!((img.data[0][0] - 1.035).abs() < 1e-6, "{:?}", img.data[0]);
     }
 }

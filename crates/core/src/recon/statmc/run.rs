@@ -36,7 +36,7 @@ pub(super) fn window(
 /// Pixels per run of a row that the window takes at once: the run's
 /// fields and its neighbours' stay in the core's cache over the window's
 /// (2R + 1)² offsets.
-pub(super) const RUN: usize = 256;
+const RUN: usize = 256;
 
 /// Pixels `xs` of row y of the frame whose first pixel is `base`, on a
 /// w × ht film.
@@ -105,6 +105,13 @@ fn window_run_portable(f: &Fields, k: &Kernel, run: &Run, out: &mut [[f64; 3]]) 
                     *wq = ws * f.n[q + i] as f64 * f64::from(u8::from(same));
                 }
             }
+            if let Some(g) = &f.guide {
+                for (i, wq) in run.iter_mut().enumerate() {
+                    if *wq != 0.0 {
+                        *wq *= g.weight(p + i, q + i);
+                    }
+                }
+            }
             for (sum, mean) in sum.iter_mut().zip(&f.mean) {
                 let m = &mean[q..q + run.len()];
                 for ((s, wq), m) in sum[slots.clone()].iter_mut().zip(&*run).zip(m) {
@@ -131,7 +138,7 @@ fn window_run_portable(f: &Fields, k: &Kernel, run: &Run, out: &mut [[f64; 3]]) 
 /// Each pair (p + i, q + i)'s weight into `wq`: `ws` × q's sample count
 /// where they are compatible ([`Fields::compatible`]), else 0; the weight
 /// of a pixel p + i with fewer than two samples is never read. Decided
-/// here where the squares are clear of [`agree`]'s boundary, or where
+/// here where the squares are clear of [`agree`](super::welch::agree)'s boundary, or where
 /// s = 0 (then the written form is d ≤ 0); true when some pair is
 /// neither, which the caller then decides with [`Fields::compatible`].
 #[inline(always)]
@@ -194,7 +201,7 @@ mod tests {
     use super::*;
     use crate::dump::Record;
     use crate::recon::statmc::welch::agree;
-    use crate::recon::statmc::{denoise, stats_of};
+    use crate::recon::statmc::{Guide, denoise, stats_of};
     use crate::recon::{Image, test_header};
 
     /// The squared pre-test decides as the written form does, on random
@@ -241,6 +248,7 @@ mod tests {
                 // run (in vector registers where the CPU has them) and
                 // once pair by pair.
                 let f = Fields {
+                    guide: None,
                     n: vec![8; 8],
                     mean: std::array::from_fn(|_| vec![0.0; 8]),
                     y_mean: std::array::from_fn(|_| [[0.0; 4], [d; 4]].concat()),
@@ -298,6 +306,7 @@ mod tests {
                         }
                         let wq = k.spatial[ny.abs_diff(y)] * k.spatial[nx.abs_diff(x)];
                         let wq = wq * f.n[q] as f64;
+                        let wq = f.guide.map_or(wq, |g| wq * g.weight(px, q));
                         for (c, s) in sum.iter_mut().enumerate() {
                             *s += wq * f.mean[c][q];
                         }
@@ -339,13 +348,32 @@ mod tests {
                     recs.push(Record::new(x, y, f as f32 + 0.5, c));
                 }
             }
-            let img = denoise(&recs, &h, |i| i % 31 != 5);
+            // Features of a few levels: equal (weight 1), near and far.
+            let mut feature = || -> Vec<f32> {
+                let levels = [0.2, 0.2, 0.21, 0.5, 0.9];
+                let len = 3 * w * ht * frames as usize;
+                (0..len).map(|_| levels[(unit() * 5.0) as usize]).collect()
+            };
+            let (albedo, normal) = (feature(), feature());
+            let guides = [
+                None,
+                Some(Guide::new(&albedo, None)),
+                Some(Guide::new(&albedo, Some(&normal))),
+            ];
             let stats = stats_of(&recs, &h, |i| i % 31 != 5);
             let k = Kernel::new(stats.iter().map(|s| s.x.n).max().unwrap_or(0));
-            let want = denoise_per_pixel(&Fields::new(&stats, w, ht), &k, w, ht);
-            for (px, (got, want)) in img.data.iter().zip(&want).enumerate() {
-                let bits = |v: &[f64; 3]| v.map(f64::to_bits);
-                assert_eq!(bits(got), bits(want), "{w} × {ht} × {frames}, pixel {px}");
+            for guide in guides {
+                let img = denoise(&recs, &h, |i| i % 31 != 5, guide);
+                let want = denoise_per_pixel(&Fields::new(&stats, w, ht, guide), &k, w, ht);
+                for (px, (got, want)) in img.data.iter().zip(&want).enumerate() {
+                    let bits = |v: &[f64; 3]| v.map(f64::to_bits);
+                    let guided = guide.is_some();
+                    assert_eq!(
+                        bits(got),
+                        bits(want),
+                        "{w} × {ht} × {frames}, {guided}, {px}"
+                    );
+                }
             }
         }
     }
@@ -368,6 +396,7 @@ mod tests {
         let on_edge = crit * (2.0 * tiny).sqrt();
         let y: Vec<f64> = (0..px).map(|i| (i % 3) as f64 * on_edge).collect();
         let f = Fields {
+            guide: None,
             n: vec![8; px],
             mean: std::array::from_fn(|c| (0..px).map(|i| (i * (c + 1)) as f64).collect()),
             y_mean: std::array::from_fn(|_| y.clone()),
@@ -412,6 +441,7 @@ mod tests {
             let y: Vec<f64> = (0..px).map(|_| pick(&[0.0, 1.0, 1.5, 2.0, 9.0])).collect();
             let se2: Vec<f64> = (0..px).map(|_| pick(&[0.0, 0.0, 0.01, 0.3, 2.0])).collect();
             let f = Fields {
+                guide: None,
                 mean: std::array::from_fn(|c| (0..px).map(|i| (i + c) as f64).collect()),
                 y_mean: std::array::from_fn(|c| y.iter().map(|v| v + c as f64 * 0.1).collect()),
                 se2: std::array::from_fn(|_| se2.clone()),
