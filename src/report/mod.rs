@@ -74,7 +74,7 @@ pub struct FilterReport {
     /// absent when no image of the run is denoised.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub denoiser: Option<String>,
-    /// OIDN's auxiliary images, when given.
+    /// The renderer's albedo and normal (OIDN's and statmc's), when given.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub albedo: Option<String>,
     #[serde(default, skip_serializing_if = "Option::is_none")]

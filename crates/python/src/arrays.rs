@@ -123,8 +123,9 @@ pub(crate) fn film_of(name: &str, r: &Bound<'_, PyAny>, h: &Header) -> PyResult<
     Ok(img)
 }
 
-/// OIDN's auxiliary images from `albedo=` and `normal=`, refused as the
-/// command refuses `--albedo` and `--normal`.
+/// The renderer's albedo and normal (OIDN's auxiliary images, statmc's
+/// guide) from `albedo=` and `normal=`, checked as the command checks
+/// `--albedo` and `--normal`.
 pub(crate) fn aux_of(
     albedo: Option<&Bound<'_, PyAny>>,
     normal: Option<&Bound<'_, PyAny>>,

@@ -143,8 +143,9 @@ impl FilterResult {
 /// "config" (k=10, sigma_color=100.0, white="auto", methods="median,clamp",
 /// "all" or a list of names); the rest default as the command line's. `reference`
 /// is a float array (H, W, 3) or (frames, H, W, 3); so are `albedo` and
-/// `normal`, OIDN's auxiliary inputs (as `--albedo` and `--normal`). The GIL is released
-/// while the filter runs; do not write to `records` meanwhile.
+/// `normal`, OIDN's auxiliary inputs and statmc's guide (as `--albedo`
+/// and `--normal`). The GIL is released while the filter runs; do not
+/// write to `records` meanwhile.
 #[pyfunction]
 #[pyo3(signature = (records, width=None, height=None, frames=1, spp=0, order="unspecified", *, header=None, reference=None, albedo=None, normal=None, threads=0, sigma_map=false, **config))]
 #[allow(clippy::too_many_arguments)]

@@ -323,9 +323,9 @@ def test_errors_carry_the_command_lines_message(tmp_path):
 
 
 def test_albedo_and_normal_are_the_commands_flags(tmp_path):
-    """albedo= and normal= are --albedo and --normal: the command's images
-    where OIDN is found, its refusal where it is not
-    (PATHDENSITY_EXPECT_OIDN=1 requires the first)."""
+    """albedo= and normal= are --albedo and --normal: the command's images,
+    OIDN's and statmc's guide where OIDN is found, statmc's where it is not
+    (PATHDENSITY_EXPECT_OIDN=1 requires OIDN)."""
     dump = synth(tmp_path / "d.pds", width=24, height=16, spp=8, fireflies=0.01)
     h, r = pd.read_dump(dump)
     # Two film-sized EXRs stand for a renderer's albedo and normal.
@@ -334,27 +334,21 @@ def test_albedo_and_normal_are_the_commands_flags(tmp_path):
     a_exr, n_exr = tmp_path / "aux" / "mean.exr", tmp_path / "aux" / "median.exr"
     albedo, normal = (read_exrs([p], tmp_path)[0] for p in (a_exr, n_exr))
     out = tmp_path / "o"
-    p = cli("filter", dump, "-o", out, "--no-html", "--albedo", a_exr, "--normal", n_exr, ok=False)
+    cli("filter", dump, "-o", out, "--no-html", "--albedo", a_exr, "--normal", n_exr)
+    res = pd.filter(r, header=h, albedo=albedo, normal=normal)
+    for name, image in res.images.items():
+        assert same_bits(image, read_exrs([out / f"{name}.exr"], tmp_path)), name
+    oidn = "guided_oidn" in res.images
     if os.environ.get("PATHDENSITY_EXPECT_OIDN") == "1":
-        assert p.returncode == 0, p.stderr
-    if p.returncode == 0:
-        res = pd.filter(r, header=h, albedo=albedo, normal=normal)
-        assert "guided_oidn" in res.images
-        for name, image in res.images.items():
-            assert same_bits(image, read_exrs([out / f"{name}.exr"], tmp_path)), name
-        # The albedo changes OIDN's image.
-        plain = pd.filter(r, header=h, methods="guided_oidn")
-        assert not same_bits(plain.images["guided_oidn"], res.images["guided_oidn"])
-    else:
-        line = one_line(p)
-        with pytest.raises(ValueError) as e:
-            pd.filter(r, header=h, albedo=albedo, normal=normal)
-        assert line == "pathdensity: --albedo " + str(e.value)[len("albedo") + 1:]
+        assert oidn, sorted(res.images)
+    # The albedo changes the recommended image: OIDN's, or statmc's.
+    name = "guided_oidn" if oidn else "guided"
+    plain = pd.filter(r, header=h, methods=name)
+    assert not same_bits(plain.images[name], res.images[name])
     with pytest.raises(ValueError, match="normal needs albedo"):
         pd.filter(r, header=h, normal=normal)
-    if p.returncode == 0:
-        with pytest.raises(ValueError, match=r"albedo has shape \(4, 24, 3\)"):
-            pd.filter(r, header=h, albedo=albedo[:4])
+    with pytest.raises(ValueError, match=r"albedo has shape \(4, 24, 3\)"):
+        pd.filter(r, header=h, albedo=albedo[:4])
 
 
 def test_the_gil_is_released_during_the_filter(tmp_path):

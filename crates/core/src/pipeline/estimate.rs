@@ -137,7 +137,8 @@ pub struct Estimators<'s, 'a> {
     /// Every pixel's confidence interval of its accepted samples.
     accepted_interval: OnceLock<(Interval, f64)>,
     statmc: OnceLock<(Arc<Image>, f64)>,
-    /// OIDN's auxiliary images ([`Self::with_aux`]).
+    /// The renderer's albedo and normal ([`Self::with_aux`]): OIDN's
+    /// auxiliary images and statmc's guide.
     aux: Option<&'s imagespace::oidn::Aux>,
 }
 
@@ -177,7 +178,7 @@ impl<'s, 'a> Estimators<'s, 'a> {
         }
     }
 
-    /// The same estimators with OIDN's auxiliary images.
+    /// The same estimators with the renderer's albedo and normal.
     pub fn with_aux(self, aux: Option<&'s imagespace::oidn::Aux>) -> Estimators<'s, 'a> {
         Estimators { aux, ..self }
     }

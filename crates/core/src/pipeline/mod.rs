@@ -67,7 +67,8 @@ pub struct RunOptions<'a> {
     /// Measure every image against this reference.
     pub reference: Option<&'a Image>,
     pub progress: &'a dyn Progress,
-    /// OIDN's auxiliary images (the renderer's albedo and normal).
+    /// The renderer's albedo and normal: OIDN's auxiliary images and
+    /// statmc's guide.
     pub aux: Option<&'a crate::imagespace::oidn::Aux>,
 }
 
