@@ -30,13 +30,15 @@ use std::ffi::{CStr, c_char, c_int, c_void};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+use crate::config::ConfigError;
+use crate::dump::Header;
 use crate::recon::Image;
 
-/// OIDN's auxiliary images, the film's size and frames: the first-hit
-/// albedo, and optionally the normal (OIDN takes a normal only with an
-/// albedo). Kept as OIDN reads them, f32 with non-finite values as 0,
-/// made once for every call of a run (up to three: the image and two
-/// held-out halves).
+/// The renderer's first-hit albedo, and optionally its normal (only with
+/// an albedo), the film's size and frames: OIDN's auxiliary images and
+/// statmc's guide. Kept as OIDN reads them, f32 with non-finite values
+/// as 0, made once for every use of a run (up to three OIDN calls: the
+/// image and two held-out halves).
 #[derive(Clone, Debug)]
 pub struct Aux {
     albedo: Vec<f32>,
@@ -51,6 +53,29 @@ impl Aux {
         }
     }
 
+    /// A [`ConfigError`] on `albedo` (or `normal`) unless the image holds
+    /// the film `h`'s pixels, every frame.
+    pub(crate) fn fits(&self, h: &Header) -> Result<(), ConfigError> {
+        let want = 3 * h.pixels() * h.frames as usize;
+        let check = |field, v: &[f32]| match v.len() {
+            n if n == want => Ok(()),
+            n => Err(ConfigError {
+                field,
+                problem: format!(
+                    "holds {} pixels, and the film {} × {} × {} frames",
+                    n / 3,
+                    h.width,
+                    h.height,
+                    h.frames
+                ),
+            }),
+        };
+        check("albedo", &self.albedo)?;
+        self.normal
+            .as_deref()
+            .map_or(Ok(()), |n| check("normal", n))
+    }
+
     pub(crate) fn albedo(&self) -> &[f32] {
         &self.albedo
     }
@@ -63,7 +88,8 @@ impl Aux {
 /// An auxiliary image's values as OIDN takes them: RGB f32, row-major,
 /// frame after frame, non-finite as 0.
 fn oidn_values(img: &Image) -> Vec<f32> {
-    let value = |&v: &f64| if v.is_finite() { v as f32 } else { 0.0 };
+    // Finite after the cast: an f64 beyond f32's range would be ∞.
+    let value = |&v: &f64| Some(v as f32).filter(|v| v.is_finite()).unwrap_or(0.0);
     img.data.iter().flatten().map(value).collect()
 }
 
@@ -490,6 +516,24 @@ mod tests {
                 None
             }
         }
+    }
+
+    /// The auxiliary images must hold the film's pixels, every frame; a
+    /// value beyond f32's range is kept as 0, not ∞.
+    #[test]
+    fn auxiliary_images_fit_the_film_and_stay_finite() {
+        let albedo = Image {
+            data: vec![[0.5, 1e300, f64::NAN]; 4],
+            ..Image::new(2, 2, 1)
+        };
+        let aux = Aux::new(&albedo, Some(&Image::new(2, 2, 1)));
+        assert_eq!(&aux.albedo()[..3], &[0.5, 0.0, 0.0]);
+        let mut h = crate::recon::test_header(2, 2);
+        assert_eq!(aux.fits(&h), Ok(()));
+        h.frames = 2;
+        assert_eq!(aux.fits(&h).unwrap_err().field, "albedo");
+        let short = Aux::new(&Image::new(2, 2, 2), Some(&Image::new(2, 2, 1)));
+        assert_eq!(short.fits(&h).unwrap_err().field, "normal");
     }
 
     #[test]

@@ -279,6 +279,9 @@ pub fn run(
     options: &RunOptions,
 ) -> Result<Run, PipelineError> {
     config.validate()?;
+    if let Some(aux) = options.aux {
+        aux.fits(header)?;
+    }
     memory::check(config, header)?;
     let pool = thread_pool(options.threads)?;
     let shared = Shared::new(records, header);

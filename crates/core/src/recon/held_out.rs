@@ -372,7 +372,9 @@ mod tests {
 
     /// A half's intervals and statmc's window made band by band, each band
     /// with its halo, are the whole film's, bit for bit, in either placed
-    /// order and across frames; the bands' own rows cover the film once.
+    /// order and across frames, with and without the renderer's features
+    /// (each band given its rows' share); the bands' own rows cover the
+    /// film once.
     #[test]
     fn bands_make_the_films_intervals_and_window() {
         use crate::dump::Order;
@@ -395,13 +397,21 @@ mod tests {
             let add = statmc::stats_adder();
             let film = whole(&records, &h, true, accepted, add);
             let interval = confidence::from_moments_of(&film, |f| &f.all, &h, 3.0);
+            // Features of a few levels, different in each frame.
+            let mut unit = crate::synth::test_units(5);
+            let albedo: Vec<f32> = (0..3 * film.len())
+                .map(|_| [0.3, 0.3, 0.31, 0.8][(unit() * 4.0) as usize])
+                .collect();
+            let guide = statmc::Guide::new(&albedo, None);
             let denoised = statmc::Window::new(&film, &h, None).denoise(&h);
+            let guided = statmc::Window::new(&film, &h, Some(guide)).denoise(&h);
+            assert_ne!(denoised, guided);
 
             // Bands of 2 rows (a budget of two rows of folds), the halos as
             // the halves' (one row for the intervals, HALO for the window),
             // and one row fewer.
             let budget = 2 * 24 * size_of::<HalfFold<Stats>>();
-            let banded = |halo: usize| {
+            let banded = |halo: usize, guide: Option<statmc::Guide>| {
                 let bands = bands::<Stats>(&h, halo, budget);
                 assert_eq!(bands.len(), 40);
                 let mut own = vec![0; film.len()];
@@ -413,7 +423,8 @@ mod tests {
                     let i = confidence::from_moments_of(folds, |f| &f.all, bh, 3.0);
                     banded.put(band, &i);
                     let out = band.own_of(&mut banded_denoised.data);
-                    statmc::Window::new(folds, bh, None).denoise_into(bh, band.own.start, out);
+                    let g = guide.map(|g| g.of(band.pixels.clone()));
+                    statmc::Window::new(folds, bh, g).denoise_into(bh, band.own.start, out);
                 });
                 assert!(own.iter().all(|&n| n == 1));
                 (banded, banded_denoised)
@@ -421,18 +432,20 @@ mod tests {
             let bits = |img: &Image| -> Vec<u64> {
                 img.data.iter().flatten().map(|v| v.to_bits()).collect()
             };
-            let (one_row, _) = banded(1);
+            let (one_row, _) = banded(1, None);
             assert_eq!(bits(&one_row.centre), bits(&interval.centre));
             assert_eq!(bits(&one_row.half_width), bits(&interval.half_width));
             assert_eq!(bits(&one_row.own_se), bits(&interval.own_se));
             assert_eq!(one_row.count, interval.count);
-            let (_, window) = banded(statmc::HALO);
+            let (_, window) = banded(statmc::HALO, None);
             assert_eq!(bits(&window), bits(&denoised));
+            let (_, window) = banded(statmc::HALO, Some(guide));
+            assert_eq!(bits(&window), bits(&guided));
             // Each reads all its halo: one row fewer and a band's edge
             // differs.
-            let (no_row, _) = banded(0);
+            let (no_row, _) = banded(0, None);
             assert_ne!(bits(&no_row.half_width), bits(&interval.half_width));
-            let (_, short) = banded(statmc::HALO - 1);
+            let (_, short) = banded(statmc::HALO - 1, None);
             assert_ne!(bits(&short), bits(&denoised));
         }
     }

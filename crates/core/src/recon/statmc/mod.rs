@@ -16,8 +16,9 @@
 //! the test merged a highlight into its neighbours more often: docs/RESULTS.md,
 //! "The guided image"). The
 //! output is the mean of the compatible pixels of the (2R + 1)² window,
-//! each weighted by its sample count and a spatial Gaussian of σ = R/2:
-//! the samples of every compatible pixel pooled. A pixel with fewer than
+//! each weighted by its sample count and a spatial Gaussian of σ = R/2
+//! (and by the renderer's features where given: [`Guide`]): the samples
+//! of every compatible pixel pooled. A pixel with fewer than
 //! two samples keeps its mean. Deterministic and thread-invariant: each
 //! output pixel is one sum in a fixed order.
 //!
@@ -210,7 +211,15 @@ impl<'a> Guide<'a> {
         if let Some(n) = self.normal {
             e += d2(n) / (2.0 * NORMAL_SD * NORMAL_SD);
         }
-        (-e).exp()
+        // exp(−0) is 1, and beyond 746 exp(−e) is below half the least
+        // subnormal, so 0: neither needs the call.
+        if e == 0.0 {
+            1.0
+        } else if e > 746.0 {
+            0.0
+        } else {
+            (-e).exp()
+        }
     }
 }
 

@@ -49,8 +49,8 @@ struct Run {
 }
 
 /// The output of the pixels of `run`, into `out`: each pixel's mean of its
-/// compatible neighbours, weighted by sample count and the spatial
-/// Gaussian. The window is taken offset by offset in its order (row by
+/// compatible neighbours, weighted by sample count, the spatial Gaussian
+/// and the features' weight where there is a guide. The window is taken offset by offset in its order (row by
 /// row, left to right), each offset for the whole run, so each pixel's
 /// sums add the same terms in the same order as a loop over its own
 /// window; a neighbour left out adds 0, which changes no sum (a sum that
@@ -286,8 +286,8 @@ mod tests {
     }
 
     /// The window as its definition says it, one output pixel at a time:
-    /// the compatible neighbours' means, each weighted by its count and
-    /// the spatial Gaussian, the others skipped.
+    /// the compatible neighbours' means, each weighted by its count, the
+    /// spatial Gaussian and the features' weight, the others skipped.
     fn denoise_per_pixel(f: &Fields, k: &Kernel, w: usize, ht: usize) -> Vec<[f64; 3]> {
         (0..f.n.len())
             .map(|px| {
