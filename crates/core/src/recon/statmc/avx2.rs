@@ -1,3 +1,4 @@
+use super::features::{CUTOFF, Features, INV_A, INV_N, LN2_HI, LN2_LO, LOG2_E, TAYLOR};
 use super::fields::Fields;
 use super::run::{Pairs, pair_weights_portable};
 use super::welch::{Kernel, MARGIN, TINY};
@@ -148,4 +149,63 @@ unsafe fn four(s: &Slices, k: &Kernel, ws: f64, last: i32, i: usize) -> ([f64; 4
         _mm256_storeu_pd(out.as_mut_ptr(), w);
         (out, undecided)
     }
+}
+
+/// [`Features::weigh`] four pairs at a time: the same operations as
+/// [`Features::weight`] and [`exp_neg`](super::features::exp_neg), lane
+/// by lane, in the same order (no fused multiply-add), so the same bits.
+#[target_feature(enable = "avx2")]
+pub(super) fn weigh(f: &Features, p: usize, q: usize, wq: &mut [f64]) {
+    let len = wq.len();
+    let end = len / 4 * 4;
+    // The lanes of pixels at..at + 4 of one channel, in f64 (exact).
+    let load = |v: &[f32], at: usize| {
+        let v = &v[at..at + 4];
+        // SAFETY: `v` holds four f32.
+        _mm256_cvtps_pd(unsafe { _mm_loadu_ps(v.as_ptr()) })
+    };
+    let sq = |v: &[Vec<f32>; 3], i: usize| {
+        let d = |c: usize| _mm256_sub_pd(load(&v[c], p + i), load(&v[c], q + i));
+        let (d0, d1, d2) = (d(0), d(1), d(2));
+        let s01 = _mm256_add_pd(_mm256_mul_pd(d0, d0), _mm256_mul_pd(d1, d1));
+        _mm256_add_pd(s01, _mm256_mul_pd(d2, d2))
+    };
+    for i in (0..end).step_by(4) {
+        let mut e = _mm256_mul_pd(sq(&f.albedo, i), _mm256_set1_pd(INV_A));
+        if let Some(n) = &f.normal {
+            e = _mm256_add_pd(e, _mm256_mul_pd(sq(n, i), _mm256_set1_pd(INV_N)));
+        }
+        let w = exp_neg(e);
+        let out = &mut wq[i..i + 4];
+        // SAFETY: `out` holds four f64.
+        unsafe {
+            let v = _mm256_loadu_pd(out.as_ptr());
+            _mm256_storeu_pd(out.as_mut_ptr(), _mm256_mul_pd(v, w));
+        }
+    }
+    f.weigh_portable(p, q, wq, end);
+}
+
+/// [`super::features::exp_neg`] in each lane.
+#[target_feature(enable = "avx2")]
+fn exp_neg(e: __m256d) -> __m256d {
+    let set = _mm256_set1_pd;
+    // All ones where e ≤ CUTOFF (false for a NaN); e held there, so that
+    // 2^k stays in range in every lane.
+    let inside = _mm256_cmp_pd::<_CMP_LE_OQ>(e, set(CUTOFF));
+    let e = _mm256_min_pd(e, set(CUTOFF));
+    let x = _mm256_sub_pd(_mm256_setzero_pd(), e);
+    let k = _mm256_floor_pd(_mm256_add_pd(_mm256_mul_pd(x, set(LOG2_E)), set(0.5)));
+    let r = _mm256_sub_pd(
+        _mm256_sub_pd(x, _mm256_mul_pd(k, set(LN2_HI))),
+        _mm256_mul_pd(k, set(LN2_LO)),
+    );
+    let mut y = set(TAYLOR[13]);
+    for &c in TAYLOR[..13].iter().rev() {
+        y = _mm256_add_pd(_mm256_mul_pd(y, r), set(c));
+    }
+    // 2^k from k's bits: (k + 1023) << 52.
+    let k = _mm_add_epi32(_mm256_cvtpd_epi32(k), _mm_set1_epi32(1023));
+    let scale = _mm256_castsi256_pd(_mm256_slli_epi64::<52>(_mm256_cvtepi32_epi64(k)));
+    _mm256_and_pd(_mm256_mul_pd(y, scale), inside)
 }

@@ -1,6 +1,7 @@
 //! What statmc's window reads of every pixel, made once from the pixels'
 //! statistics, and which pairs of pixels average each other.
 
+use super::features::Features;
 use super::welch::{Kernel, agree};
 use super::{Guide, NOISIER, Stats};
 use crate::par::prelude::*;
@@ -8,7 +9,7 @@ use crate::par::prelude::*;
 /// What the window reads of every pixel, one array per field: a run of a
 /// row's pixels is one slice of each, so the window's loop along the run
 /// runs in vector registers.
-pub(super) struct Fields<'a> {
+pub(super) struct Fields {
     pub(super) n: Vec<u32>,
     /// Mean of the samples.
     pub(super) mean: [Vec<f64>; 3],
@@ -21,18 +22,18 @@ pub(super) struct Fields<'a> {
     /// [`spread_limits`].
     pub(super) limit: Vec<f64>,
     /// The renderer's features, where given.
-    pub(super) guide: Option<Guide<'a>>,
+    pub(super) features: Option<Features>,
 }
 
-impl<'a> Fields<'a> {
+impl Fields {
     /// What the test reads of each pixel, made once: s²/n would otherwise
     /// be divided out again for each of the (2R + 1)² pixels around it.
     pub(super) fn new<S: AsRef<Stats> + Sync>(
         stats: &[S],
         w: usize,
         ht: usize,
-        guide: Option<Guide<'a>>,
-    ) -> Fields<'a> {
+        guide: Option<Guide>,
+    ) -> Fields {
         let stats: Vec<&Stats> = stats.iter().map(AsRef::as_ref).collect();
         let channel = |f: &(dyn Fn(&Stats) -> [f64; 3] + Sync)| -> [Vec<f64>; 3] {
             std::array::from_fn(|c| stats.par_iter().map(|s| f(s)[c]).collect())
@@ -51,7 +52,7 @@ impl<'a> Fields<'a> {
             se2,
             spread,
             limit,
-            guide,
+            features: guide.map(Features::new),
         }
     }
 

@@ -52,9 +52,12 @@ const ALPHA: f64 = 0.05;
 /// errors within 4× (docs/RESULTS.md, "The guided image").
 pub const NOISIER: f64 = 16.0;
 
+mod features;
 mod fields;
 mod run;
 mod welch;
+
+pub use features::{ALBEDO_SD, Guide, NORMAL_SD};
 
 /// [`run::pair_weights_portable`] four pairs at a time in AVX2 registers: the
 /// same comparisons (ordered, as Rust's on f64) and the same products in
@@ -132,16 +135,16 @@ pub fn denoise(
 
 /// What the window reads, made from the pixels' statistics ([`stats_of`]),
 /// which it no longer needs.
-pub(crate) struct Window<'a> {
-    fields: Fields<'a>,
+pub(crate) struct Window {
+    fields: Fields,
 }
 
-impl<'a> Window<'a> {
+impl Window {
     pub(crate) fn new<S: AsRef<Stats> + Sync>(
         stats: &[S],
         h: &Header,
-        guide: Option<Guide<'a>>,
-    ) -> Window<'a> {
+        guide: Option<Guide>,
+    ) -> Window {
         let (w, ht) = (h.width as usize, h.height as usize);
         Window {
             fields: Fields::new(stats, w, ht, guide),
@@ -162,64 +165,6 @@ impl<'a> Window<'a> {
     pub(crate) fn denoise_into(&self, h: &Header, first: usize, out: &mut [[f64; 3]]) {
         let kernel = Kernel::new(self.fields.n.iter().copied().max().unwrap_or(0));
         window(&self.fields, &kernel, h, first, out);
-    }
-}
-
-/// The renderer's first-hit albedo, and its normal where given, RGB f32
-/// a pixel, frame after frame (OIDN's auxiliary images): two compatible
-/// pixels p, q average each other with the further weight
-/// exp(−|a_p − a_q|²/2σ_a² − |n_p − n_q|²/2σ_n²), as Sakai et al.'s
-/// released code weighs its feature buffers. The test cannot tell a
-/// texture's or an edge's two sides apart when their radiance differs by
-/// less than the samples' noise; the features can.
-#[derive(Clone, Copy)]
-pub struct Guide<'a> {
-    albedo: &'a [f32],
-    normal: Option<&'a [f32]>,
-}
-
-/// σ_a of the albedo's weight: the authors' released configuration's.
-pub const ALBEDO_SD: f64 = 0.02;
-/// σ_n of the normal's weight: the authors' released configuration's.
-pub const NORMAL_SD: f64 = 0.1;
-
-impl<'a> Guide<'a> {
-    /// The features of a film's pixels, three values a pixel each.
-    pub fn new(albedo: &'a [f32], normal: Option<&'a [f32]>) -> Guide<'a> {
-        debug_assert!(normal.is_none_or(|n| n.len() == albedo.len()));
-        Guide { albedo, normal }
-    }
-
-    /// The features of the film's pixels `pixels` alone.
-    pub(crate) fn of(self, pixels: std::ops::Range<usize>) -> Guide<'a> {
-        let at = |v: &'a [f32]| &v[3 * pixels.start..3 * pixels.end];
-        Guide {
-            albedo: at(self.albedo),
-            normal: self.normal.map(at),
-        }
-    }
-
-    /// Pixels p and q's feature weight, 1 where their features are equal.
-    #[inline]
-    pub(super) fn weight(&self, p: usize, q: usize) -> f64 {
-        let d2 = |v: &[f32]| -> f64 {
-            (0..3)
-                .map(|c| (f64::from(v[3 * p + c]) - f64::from(v[3 * q + c])).powi(2))
-                .sum()
-        };
-        let mut e = d2(self.albedo) / (2.0 * ALBEDO_SD * ALBEDO_SD);
-        if let Some(n) = self.normal {
-            e += d2(n) / (2.0 * NORMAL_SD * NORMAL_SD);
-        }
-        // exp(−0) is 1, and beyond 746 exp(−e) is below half the least
-        // subnormal, so 0: neither needs the call.
-        if e == 0.0 {
-            1.0
-        } else if e > 746.0 {
-            0.0
-        } else {
-            (-e).exp()
-        }
     }
 }
 

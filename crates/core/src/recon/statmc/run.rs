@@ -105,12 +105,8 @@ fn window_run_portable(f: &Fields, k: &Kernel, run: &Run, out: &mut [[f64; 3]]) 
                     *wq = ws * f.n[q + i] as f64 * f64::from(u8::from(same));
                 }
             }
-            if let Some(g) = &f.guide {
-                for (i, wq) in run.iter_mut().enumerate() {
-                    if *wq != 0.0 {
-                        *wq *= g.weight(p + i, q + i);
-                    }
-                }
+            if let Some(features) = &f.features {
+                features.weigh(p, q, run);
             }
             for (sum, mean) in sum.iter_mut().zip(&f.mean) {
                 let m = &mean[q..q + run.len()];
@@ -248,7 +244,7 @@ mod tests {
                 // run (in vector registers where the CPU has them) and
                 // once pair by pair.
                 let f = Fields {
-                    guide: None,
+                    features: None,
                     n: vec![8; 8],
                     mean: std::array::from_fn(|_| vec![0.0; 8]),
                     y_mean: std::array::from_fn(|_| [[0.0; 4], [d; 4]].concat()),
@@ -306,7 +302,7 @@ mod tests {
                         }
                         let wq = k.spatial[ny.abs_diff(y)] * k.spatial[nx.abs_diff(x)];
                         let wq = wq * f.n[q] as f64;
-                        let wq = f.guide.map_or(wq, |g| wq * g.weight(px, q));
+                        let wq = f.features.as_ref().map_or(wq, |g| wq * g.weight(px, q));
                         for (c, s) in sum.iter_mut().enumerate() {
                             *s += wq * f.mean[c][q];
                         }
@@ -396,7 +392,7 @@ mod tests {
         let on_edge = crit * (2.0 * tiny).sqrt();
         let y: Vec<f64> = (0..px).map(|i| (i % 3) as f64 * on_edge).collect();
         let f = Fields {
-            guide: None,
+            features: None,
             n: vec![8; px],
             mean: std::array::from_fn(|c| (0..px).map(|i| (i * (c + 1)) as f64).collect()),
             y_mean: std::array::from_fn(|_| y.clone()),
@@ -441,7 +437,7 @@ mod tests {
             let y: Vec<f64> = (0..px).map(|_| pick(&[0.0, 1.0, 1.5, 2.0, 9.0])).collect();
             let se2: Vec<f64> = (0..px).map(|_| pick(&[0.0, 0.0, 0.01, 0.3, 2.0])).collect();
             let f = Fields {
-                guide: None,
+                features: None,
                 mean: std::array::from_fn(|c| (0..px).map(|i| (i + c) as f64).collect()),
                 y_mean: std::array::from_fn(|c| y.iter().map(|v| v + c as f64 * 0.1).collect()),
                 se2: std::array::from_fn(|_| se2.clone()),
