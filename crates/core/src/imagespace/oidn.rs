@@ -30,8 +30,6 @@ use std::ffi::{CStr, c_char, c_int, c_void};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use crate::config::ConfigError;
-use crate::dump::Header;
 use crate::recon::Image;
 
 /// The renderer's first-hit albedo, and optionally its normal (only with
@@ -51,29 +49,6 @@ impl Aux {
             albedo: oidn_values(albedo),
             normal: normal.map(oidn_values),
         }
-    }
-
-    /// A [`ConfigError`] on `albedo` (or `normal`) unless the image holds
-    /// the film `h`'s pixels, every frame.
-    pub(crate) fn fits(&self, h: &Header) -> Result<(), ConfigError> {
-        let want = 3 * h.pixels() * h.frames as usize;
-        let check = |field, v: &[f32]| match v.len() {
-            n if n == want => Ok(()),
-            n => Err(ConfigError {
-                field,
-                problem: format!(
-                    "holds {} pixels, and the film {} × {} × {} frames",
-                    n / 3,
-                    h.width,
-                    h.height,
-                    h.frames
-                ),
-            }),
-        };
-        check("albedo", &self.albedo)?;
-        self.normal
-            .as_deref()
-            .map_or(Ok(()), |n| check("normal", n))
     }
 
     pub(crate) fn albedo(&self) -> &[f32] {
@@ -518,22 +493,15 @@ mod tests {
         }
     }
 
-    /// The auxiliary images must hold the film's pixels, every frame; a
-    /// value beyond f32's range is kept as 0, not ∞.
+    /// A value beyond f32's range is kept as 0, not ∞.
     #[test]
-    fn auxiliary_images_fit_the_film_and_stay_finite() {
+    fn auxiliary_images_stay_finite() {
         let albedo = Image {
             data: vec![[0.5, 1e300, f64::NAN]; 4],
             ..Image::new(2, 2, 1)
         };
-        let aux = Aux::new(&albedo, Some(&Image::new(2, 2, 1)));
+        let aux = Aux::new(&albedo, None);
         assert_eq!(&aux.albedo()[..3], &[0.5, 0.0, 0.0]);
-        let mut h = crate::recon::test_header(2, 2);
-        assert_eq!(aux.fits(&h), Ok(()));
-        h.frames = 2;
-        assert_eq!(aux.fits(&h).unwrap_err().field, "albedo");
-        let short = Aux::new(&Image::new(2, 2, 2), Some(&Image::new(2, 2, 1)));
-        assert_eq!(short.fits(&h).unwrap_err().field, "normal");
     }
 
     #[test]

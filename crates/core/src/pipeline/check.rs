@@ -5,6 +5,7 @@
 use super::PipelineError;
 use crate::config::{ConfigError, FilterConfig, White};
 use crate::dump::{Header, Record, Validity};
+use crate::imagespace::oidn::Aux;
 use crate::joint::white::auto_white;
 use crate::par::prelude::*;
 
@@ -19,6 +20,27 @@ pub fn resolve_white(
         White::Fixed(v) => Ok(v),
         White::Auto => auto_white(records, header).ok_or(PipelineError::NoWhite),
     }
+}
+
+/// A [`ConfigError`] on `albedo` (or `normal`) unless the renderer's
+/// images hold the film `h`'s pixels, every frame.
+pub(crate) fn aux_fits(aux: &Aux, h: &Header) -> Result<(), ConfigError> {
+    let want = 3 * h.pixels() * h.frames as usize;
+    let check = |field, v: &[f32]| match v.len() {
+        n if n == want => Ok(()),
+        n => Err(ConfigError {
+            field,
+            problem: format!(
+                "holds {} pixels, and the film {} × {} × {} frames",
+                n / 3,
+                h.width,
+                h.height,
+                h.frames
+            ),
+        }),
+    };
+    check("albedo", aux.albedo())?;
+    aux.normal().map_or(Ok(()), |n| check("normal", n))
 }
 
 /// Checks `config` against the dump before the replay: k below the number
@@ -94,4 +116,22 @@ pub fn check_counted(
         .into());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::recon::Image;
+
+    /// The renderer's images must hold the film's pixels, every frame.
+    #[test]
+    fn auxiliary_images_fit_the_film() {
+        let aux = Aux::new(&Image::new(2, 2, 1), Some(&Image::new(2, 2, 1)));
+        let mut h = crate::recon::test_header(2, 2);
+        assert_eq!(aux_fits(&aux, &h), Ok(()));
+        h.frames = 2;
+        assert_eq!(aux_fits(&aux, &h).unwrap_err().field, "albedo");
+        let short = Aux::new(&Image::new(2, 2, 2), Some(&Image::new(2, 2, 1)));
+        assert_eq!(aux_fits(&short, &h).unwrap_err().field, "normal");
+    }
 }

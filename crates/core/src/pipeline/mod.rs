@@ -280,7 +280,7 @@ pub fn run(
 ) -> Result<Run, PipelineError> {
     config.validate()?;
     if let Some(aux) = options.aux {
-        aux.fits(header)?;
+        check::aux_fits(aux, header)?;
     }
     memory::check(config, header)?;
     let pool = thread_pool(options.threads)?;
