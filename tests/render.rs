@@ -248,3 +248,60 @@ fn two_lights_trimmed_mean_loses_the_blue_light_and_the_filter_keeps_it() {
     assert!(blue("median") < blue("trimmed"));
     assert!(blue("filtered") > 0.88);
 }
+
+/// `render --albedo-out --normal-out` writes the first-hit albedo (in
+/// [0, 1]) and unit normals on the dump's film, the same bits for any
+/// thread count, which the filter takes as `--albedo` and `--normal`; an
+/// output that is another output is refused before anything is rendered.
+#[test]
+fn the_renderer_writes_albedo_and_normal_the_filter_takes() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |name: &str| dir.path().join(name);
+    let render = |threads: &str, albedo: &Path, normal: &Path| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_render"))
+            .args(["--scene", "glossy-room", "--width", "12", "--height", "10"])
+            .args(["--spp", "4", "--aux-spp", "4", "--threads", threads, "-o"])
+            .arg(p("d.pds"))
+            .arg("--albedo-out")
+            .arg(albedo)
+            .arg("--normal-out")
+            .arg(normal)
+            .output()
+            .unwrap()
+    };
+    for (threads, a, n) in [("1", "a1.exr", "n1.exr"), ("2", "a2.exr", "n2.exr")] {
+        let o = render(threads, &p(a), &p(n));
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    for name in ["a", "n"] {
+        let read = |k: &str| std::fs::read(p(&format!("{name}{k}.exr"))).unwrap();
+        assert_eq!(read("1"), read("2"), "{name}");
+    }
+    let (w, h, albedo) = exr::read_rgb(&p("a1.exr"), 120).unwrap();
+    assert_eq!((w, h), (12, 10));
+    assert!(albedo.iter().flatten().all(|v| (0.0..=1.0).contains(v)));
+    assert!(albedo.iter().any(|a| a[0] > 0.0));
+    let (_, _, normal) = exr::read_rgb(&p("n1.exr"), 120).unwrap();
+    // A pixel whose rays all hit one flat surface has a unit normal.
+    let length = |n: &[f64; 3]| n.iter().map(|c| c * c).sum::<f64>().sqrt();
+    assert!(normal.iter().any(|n| (length(n) - 1.0).abs() < 1e-6));
+    assert!(normal.iter().all(|n| length(n) <= 1.0 + 1e-6));
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_pathdensity"))
+        .arg("filter")
+        .arg(p("d.pds"))
+        .arg("-o")
+        .arg(p("out"))
+        .args(["--no-html", "--methods", "guided", "--albedo"])
+        .arg(p("a1.exr"))
+        .arg("--normal")
+        .arg(p("n1.exr"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = render("2", &p("same.exr"), &p("same.exr"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("is both the albedo and the normal"),
+        "{err}"
+    );
+}

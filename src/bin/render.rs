@@ -1,7 +1,7 @@
 //! `render`: path-trace a scene into a `.pds` dump (and optionally a
 //! reference EXR). Parses arguments and calls the library.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -9,9 +9,9 @@ use clap::{Parser, ValueEnum};
 use pathdensity::dump::Order;
 use pathdensity::io::exr;
 use pathdensity::io::guard::{self, Inputs};
-use pathdensity::recon::ReconFilter;
+use pathdensity::recon::{Image, ReconFilter};
 use pathdensity_render::sampler::independent_seed;
-use pathdensity_render::{RenderSettings, SceneName, render_dump, render_reference};
+use pathdensity_render::{RenderSettings, SceneName, render_aux, render_dump, render_reference};
 
 use pathdensity::cli::Bar;
 
@@ -56,6 +56,16 @@ struct Cli {
     /// The reference EXR (an animation writes REF_0000.exr, … beside it).
     #[arg(long, requires = "reference_spp")]
     reference_out: Option<PathBuf>,
+    /// The first-hit albedo EXR, a denoiser's auxiliary image (`filter
+    /// --albedo`; an animation writes A_0000.exr, … beside it).
+    #[arg(long)]
+    albedo_out: Option<PathBuf>,
+    /// The first-hit shading normal EXR (`filter --normal`).
+    #[arg(long)]
+    normal_out: Option<PathBuf>,
+    /// Camera rays per pixel of the albedo and normal.
+    #[arg(long, default_value_t = 16)]
+    aux_spp: u32,
     /// The reference's reconstruction filter: use the one you filter with.
     #[arg(long, value_enum, default_value_t = Recon::Box)]
     recon: Recon,
@@ -80,14 +90,22 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         seed: cli.seed,
     };
     // Every output is checked before the render: each may replace only a
-    // file of its own kind (an EXR only if pathdensity wrote it), and the
-    // reference is not the dump.
-    if let Some(path) = &cli.reference_out {
+    // file of its own kind (an EXR only if pathdensity wrote it), and no
+    // two outputs are one file.
+    let images = [
+        ("reference", &cli.reference_out),
+        ("albedo", &cli.albedo_out),
+        ("normal", &cli.normal_out),
+    ];
+    let mut taken = vec![("dump", cli.out.clone())];
+    for (name, path) in images {
+        let Some(path) = path else { continue };
         for p in exr::reference_files(path, frames as usize) {
-            if p == cli.out {
-                anyhow::bail!("{}: is both the dump and the reference", p.display());
+            if let Some((other, _)) = taken.iter().find(|(_, q)| *q == p) {
+                anyhow::bail!("{}: is both the {other} and the {name}", p.display());
             }
             Inputs::default().check_file(&p, exr::written_by_us)?;
+            taken.push((name, p));
         }
     }
     Inputs::default().check_file(&cli.out, guard::looks_like_dump)?;
@@ -106,6 +124,25 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         secs,
         h.sample_count as f64 / secs / 1e6
     );
+    if cli.albedo_out.is_some() || cli.normal_out.is_some() {
+        let aux = RenderSettings {
+            spp: cli.aux_spp,
+            ..st.clone()
+        };
+        let t = Instant::now();
+        let [albedo, normal] = pool.install(|| render_aux(&scene, &aux, &Bar::new("albedo")))?;
+        for (path, img) in [(&cli.albedo_out, &albedo), (&cli.normal_out, &normal)] {
+            if let Some(path) = path {
+                let written = write_exr(path, img)?;
+                println!(
+                    "{}: at {} spp in {:.2} s",
+                    written.display(),
+                    cli.aux_spp,
+                    t.elapsed().as_secs_f64()
+                );
+            }
+        }
+    }
     if let (Some(spp), Some(path)) = (cli.reference_spp, cli.reference_out) {
         st.spp = spp;
         st.seed = independent_seed(cli.seed);
@@ -115,19 +152,26 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         };
         let t = Instant::now();
         let img = pool.install(|| render_reference(&scene, &st, filter, &Bar::new("reference")))?;
-        let dir = path.parent().unwrap_or(std::path::Path::new("."));
-        let stem = path
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "reference".into());
-        let names = exr::write_image(dir, &stem, &img)?;
+        let written = write_exr(&path, &img)?;
         println!(
             "{}: reference at {spp} spp in {:.2} s",
-            dir.join(&names[0]).display(),
+            written.display(),
             t.elapsed().as_secs_f64()
         );
     }
     Ok(())
+}
+
+/// `img` written as the EXR `path` names (an animation's frames as
+/// STEM_0000.exr, … beside it); the first file written.
+fn write_exr(path: &Path, img: &Image) -> anyhow::Result<PathBuf> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "image".into());
+    let names = exr::write_image(dir, &stem, img)?;
+    Ok(dir.join(&names[0]))
 }
 
 fn main() -> ExitCode {

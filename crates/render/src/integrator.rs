@@ -73,6 +73,15 @@ pub fn radiance(scene: &Scene, mut ray: Ray, rng: &mut Sampler) -> Vec3 {
     l
 }
 
+/// The first surface `ray` hits: its material's albedo and its shading
+/// normal, a denoiser's auxiliary features; zeros where it hits nothing.
+pub fn first_hit(scene: &Scene, ray: &Ray) -> (Vec3, Vec3) {
+    match scene.intersect(ray) {
+        Some((hit, id)) => (scene.primitives[id].material.albedo(), hit.normal),
+        None => (Vec3::ZERO, Vec3::ZERO),
+    }
+}
+
 /// One light sample with its MIS weight against BSDF sampling.
 fn next_event(
     scene: &Scene,

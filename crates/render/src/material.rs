@@ -29,6 +29,21 @@ pub enum Material {
     Black,
 }
 
+impl Material {
+    /// The first-hit albedo a denoiser takes (OIDN's definition): the
+    /// diffuse colour, a conductor's normal-incidence reflectance, a
+    /// mirror's reflectance, 1 for glass, 0 for an emitter's surface.
+    pub fn albedo(&self) -> Vec3 {
+        match *self {
+            Material::Lambert { albedo } => albedo,
+            Material::Conductor { f0, .. } => f0,
+            Material::Dielectric { .. } => Vec3::ONE,
+            Material::Mirror { reflectance } => reflectance,
+            Material::Black => Vec3::ZERO,
+        }
+    }
+}
+
 /// A sampled incident direction. `weight` = f · |cos θ_i| / pdf.
 #[derive(Clone, Copy, Debug)]
 pub struct BsdfSample {

@@ -14,6 +14,7 @@ use rayon::prelude::*;
 
 use crate::sampler::Sampler;
 use crate::scene::Scene;
+use crate::vec3::{Ray, Vec3};
 
 /// What to render: film size, samples and their order.
 #[derive(Clone, Debug)]
@@ -69,6 +70,22 @@ fn inside(n: u32, u: f64) -> f32 {
 /// Sample `s` of pixel `(i, j)` in frame `f`: a film position jittered in
 /// the pixel, a time jittered in the frame (animations only), radiance.
 pub fn sample(scene: &Scene, st: &RenderSettings, f: u32, i: u32, j: u32, s: u32) -> Record {
+    let (mut rng, [x, y, t], ray) = primary(scene, st, f, i, j, s);
+    let l = crate::integrator::radiance(scene, ray, &mut rng);
+    let c = [l.x as f32, l.y as f32, l.z as f32];
+    Record::new(x, y, t, c)
+}
+
+/// Sample `s`'s camera ray and its (x, y, t), and the sampler that goes
+/// on from there.
+fn primary(
+    scene: &Scene,
+    st: &RenderSettings,
+    f: u32,
+    i: u32,
+    j: u32,
+    s: u32,
+) -> (Sampler, [f32; 3], Ray) {
     let mut rng = Sampler::new(st.seed, f, i, j, s);
     let (x, y) = (inside(i, rng.uniform()), inside(j, rng.uniform()));
     let t = if st.frames > 1 {
@@ -81,9 +98,51 @@ pub fn sample(scene: &Scene, st: &RenderSettings, f: u32, i: u32, j: u32, s: u32
     let ray = scene
         .camera
         .ray(x as f64, y as f64, st.width, st.height, t as f64);
-    let l = crate::integrator::radiance(scene, ray, &mut rng);
-    let c = [l.x as f32, l.y as f32, l.z as f32];
-    Record::new(x, y, t, c)
+    (rng, [x, y, t], ray)
+}
+
+/// The first-hit albedo and normal images a denoiser takes beside the
+/// colour (OIDN's auxiliary images, statmc's guide): each pixel's mean
+/// over `st.spp` camera rays jittered as the dump's samples are, in a
+/// fixed order (the same bits for any thread count).
+pub fn render_aux(
+    scene: &Scene,
+    st: &RenderSettings,
+    progress: &dyn Progress,
+) -> Result<[Image; 2]> {
+    st.check()?;
+    let (w, h, frames) = (st.width as usize, st.height as usize, st.frames as usize);
+    progress.set_length((frames * h) as u64);
+    let rows: Vec<Vec<[[f64; 3]; 2]>> = (0..frames * h)
+        .into_par_iter()
+        .map(|row| {
+            let (f, j) = ((row / h) as u32, (row % h) as u32);
+            let pixels = (0..w as u32)
+                .map(|i| {
+                    let mut sum = [Vec3::ZERO; 2];
+                    for s in 0..st.spp {
+                        let (_, _, ray) = primary(scene, st, f, i, j, s);
+                        let (a, n) = crate::integrator::first_hit(scene, &ray);
+                        sum = [sum[0] + a, sum[1] + n];
+                    }
+                    sum.map(|v| {
+                        let v = v / st.spp as f64;
+                        [v.x, v.y, v.z]
+                    })
+                })
+                .collect();
+            progress.inc(1);
+            pixels
+        })
+        .collect();
+    progress.finish();
+    let image = |k: usize| Image {
+        width: w,
+        height: h,
+        frames,
+        data: rows.iter().flatten().map(|p| p[k]).collect(),
+    };
+    Ok([image(0), image(1)])
 }
 
 /// Renders every sample straight into a memory-mapped dump at `path`,
