@@ -305,3 +305,27 @@ fn the_renderer_writes_albedo_and_normal_the_filter_takes() {
         "{err}"
     );
 }
+
+/// The demo runs an animation as a still: its reference, albedo and
+/// normal are found frame by frame, and the default images are made with
+/// them.
+#[test]
+fn the_demo_filters_an_animation_with_its_reference_and_features() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_demo"))
+        .args(["--scene", "moving", "--size", "8", "--spp", "2"])
+        .args(["--reference-spp", "4", "-o"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(dir.path().join("filtered").join("report.json")).unwrap(),
+    )
+    .unwrap();
+    assert!(
+        report["albedo"].is_string() && report["reference"].is_string(),
+        "{report}"
+    );
+    assert!(report["metrics"]["guided"].is_object(), "{report}");
+}

@@ -15,7 +15,7 @@ use pathdensity::io::exr;
 use pathdensity::io::guard::{self, Inputs};
 use pathdensity::recon::ReconFilter;
 use pathdensity_render::sampler::independent_seed;
-use pathdensity_render::{RenderSettings, SceneName, render_dump, render_reference};
+use pathdensity_render::{RenderSettings, SceneName, render_aux, render_dump, render_reference};
 
 use pathdensity::cli::Bar;
 
@@ -39,13 +39,19 @@ struct Cli {
     seed: u64,
 }
 
+/// Camera rays a pixel of the albedo and normal images.
+const AUX_SPP: u32 = 16;
+
 fn run(cli: Cli) -> anyhow::Result<()> {
     let name = cli.scene.as_str();
     let frames = cli.scene.default_frames();
     let ref_name = format!("{name}_ref");
+    let aux_names = [format!("{name}_albedo"), format!("{name}_normal")];
     let mut ours = vec![format!("{name}.pds"), "filtered".to_string()];
-    for p in exr::reference_files(&cli.out.join(format!("{ref_name}.exr")), frames as usize) {
-        ours.extend(p.file_name().map(|n| n.to_string_lossy().into_owned()));
+    for stem in std::iter::once(&ref_name).chain(&aux_names) {
+        for p in exr::reference_files(&cli.out.join(format!("{stem}.exr")), frames as usize) {
+            ours.extend(p.file_name().map(|n| n.to_string_lossy().into_owned()));
+        }
     }
     claim(&cli.out, &ours)?;
     let scene = cli.scene.build(frames);
@@ -68,18 +74,31 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         st.spp,
         t.elapsed().as_secs_f64()
     );
+    // The first-hit albedo and normal, as a renderer's denoising passes
+    // give them: OIDN's auxiliary images and statmc's guide.
+    let aux = RenderSettings {
+        spp: AUX_SPP,
+        ..st.clone()
+    };
+    let [albedo, normal] = render_aux(&scene, &aux, &Bar::new("albedo"))?;
+    exr::write_image(&cli.out, &aux_names[0], &albedo)?;
+    exr::write_image(&cli.out, &aux_names[1], &normal)?;
     st.spp = cli.reference_spp;
     st.seed = independent_seed(cli.seed);
     let t = Instant::now();
     let reference = render_reference(&scene, &st, ReconFilter::Box, &Bar::new("reference"))?;
-    let written = exr::write_image(&cli.out, &ref_name, &reference)?;
+    exr::write_image(&cli.out, &ref_name, &reference)?;
     println!(
         "rendered the reference ({} spp) in {:.2} s",
         st.spp,
         t.elapsed().as_secs_f64()
     );
     let mut opts = filter::FilterOptions::new(&dump, cli.out.join("filtered"));
-    opts.reference = Some(cli.out.join(&written[0]));
+    // As --reference takes them: NAME.exr, or NAME_0000.exr, … beside it
+    // (an animation's first file named instead found no frames).
+    opts.reference = Some(cli.out.join(format!("{ref_name}.exr")));
+    opts.albedo = Some(cli.out.join(format!("{}.exr", aux_names[0])));
+    opts.normal = Some(cli.out.join(format!("{}.exr", aux_names[1])));
     // The demo shows the comparison: every image this machine can make.
     opts.config.methods = MethodSet::available();
     let report = filter::filter_with_progress(&opts, &Bar::new("filter"))?;
