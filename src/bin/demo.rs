@@ -15,7 +15,9 @@ use pathdensity::io::exr;
 use pathdensity::io::guard::{self, Inputs};
 use pathdensity::recon::ReconFilter;
 use pathdensity_render::sampler::independent_seed;
-use pathdensity_render::{RenderSettings, SceneName, render_aux, render_dump, render_reference};
+use pathdensity_render::{
+    AUX_SPP, RenderSettings, SceneName, render_aux, render_dump, render_reference,
+};
 
 use pathdensity::cli::Bar;
 
@@ -38,9 +40,6 @@ struct Cli {
     #[arg(long, default_value_t = 1)]
     seed: u64,
 }
-
-/// Camera rays a pixel of the albedo and normal images.
-const AUX_SPP: u32 = 16;
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     let name = cli.scene.as_str();

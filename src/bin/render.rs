@@ -11,7 +11,9 @@ use pathdensity::io::exr;
 use pathdensity::io::guard::{self, Inputs};
 use pathdensity::recon::{Image, ReconFilter};
 use pathdensity_render::sampler::independent_seed;
-use pathdensity_render::{RenderSettings, SceneName, render_aux, render_dump, render_reference};
+use pathdensity_render::{
+    AUX_SPP, RenderSettings, SceneName, render_aux, render_dump, render_reference,
+};
 
 use pathdensity::cli::Bar;
 
@@ -64,7 +66,7 @@ struct Cli {
     #[arg(long)]
     normal_out: Option<PathBuf>,
     /// Camera rays per pixel of the albedo and normal.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = AUX_SPP)]
     aux_spp: u32,
     /// The reference's reconstruction filter: use the one you filter with.
     #[arg(long, value_enum, default_value_t = Recon::Box)]

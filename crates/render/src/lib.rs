@@ -20,5 +20,5 @@ pub mod scene;
 pub mod scenes;
 pub mod vec3;
 
-pub use render::{RenderSettings, render_aux, render_dump, render_reference};
+pub use render::{AUX_SPP, RenderSettings, render_aux, render_dump, render_reference};
 pub use scenes::SceneName;

@@ -101,6 +101,10 @@ fn primary(
     (rng, [x, y, t], ray)
 }
 
+/// Camera rays a pixel of the albedo and normal images, unless asked
+/// otherwise (`render --aux-spp`).
+pub const AUX_SPP: u32 = 16;
+
 /// The first-hit albedo and normal images a denoiser takes beside the
 /// colour (OIDN's auxiliary images, statmc's guide): each pixel's mean
 /// over `st.spp` camera rays jittered as the dump's samples are, in a
