@@ -4,10 +4,10 @@
 # 128) pixels and each of SPPS (default "16 64 256") spp, seed 1,
 # pass-major, with one reference per scene (REF_SPP, default 1024, for ours;
 # MI_REF_SPP, default 4096, for Mitsuba's, rendered by Mitsuba itself).
-# Writes OUT/RENDERER-SCENE-SPP.pds and OUT/RENDERER-SCENE-ref.exr, and for
-# Mitsuba's scenes OUT/mitsuba-SCENE-albedo.exr and -normal.exr (64 spp,
-# Mitsuba's aov integrator: OIDN's auxiliary inputs); a file already there
-# is kept. Needs Mitsuba (bash tools/mitsuba/setup.sh). Blender Cycles'
+# Writes OUT/RENDERER-SCENE-SPP.pds and OUT/RENDERER-SCENE-ref.exr, and
+# OUT/RENDERER-SCENE-albedo.exr and -normal.exr, the denoisers' auxiliary
+# inputs (ours: 16 camera rays a pixel; Mitsuba's: 64 spp of its aov
+# integrator); a file already there is kept. Needs Mitsuba (bash tools/mitsuba/setup.sh). Blender Cycles'
 # builtin scenes (CYCLES_SCENES, default "caustic highlight room textured";
 # reference CY_REF_SPP, default 4096, by Cycles; albedo and normal from its
 # denoising passes) when tools/cycles/.venv exists (bash tools/cycles/setup.sh).
@@ -35,7 +35,8 @@ for s in $ours; do
         dump="$out/ours-$s-$spp.pds"
         [ -f "$dump" ] && continue
         refargs=()
-        [ -f "$ref" ] || refargs=(--reference-spp "$ref_spp" --reference-out "$ref")
+        [ -f "$ref" ] || refargs=(--reference-spp "$ref_spp" --reference-out "$ref"
+            --albedo-out "$out/ours-$s-albedo.exr" --normal-out "$out/ours-$s-normal.exr")
         ./target/release/render --scene "$s" --width "$size" --height "$size" --spp "$spp" \
             --order pass --threads "$threads" -o "$dump" "${refargs[@]}" > /dev/null
         echo "$dump" >&2
