@@ -212,6 +212,13 @@ pub struct Row {
     /// image (README, "Which image to use"; measured in docs/RESULTS.md,
     /// "The guided image").
     pub recommend: Option<u8>,
+    /// The bytes a pixel of every frame its image costs at its peak,
+    /// beyond the bare run's: the image (24, three f64), its own working
+    /// buffers and its shared pieces', for `guided` and `guided_oidn` the
+    /// held-out halves; OIDN's library is counted once a run instead
+    /// (`pipeline::memory`). Measured alone, on a 2048² film and on the
+    /// 1080p frame (docs/BENCHMARKS.md, "Memory a film needs").
+    pub bytes_per_pixel: u16,
 }
 
 /// Every method, in the canonical order: `TABLE[m as usize].method == m`
@@ -225,6 +232,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Baseline,
         default: Made::ByDefault,
         recommend: None,
+        bytes_per_pixel: 0,
     },
     Row {
         method: Method::Filtered,
@@ -234,6 +242,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Grid,
         default: Made::ByDefault,
         recommend: Some(5),
+        bytes_per_pixel: 0,
     },
     Row {
         method: Method::Median,
@@ -243,6 +252,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Baseline,
         default: Made::ByName,
         recommend: None,
+        bytes_per_pixel: 78,
     },
     Row {
         method: Method::Trimmed,
@@ -252,6 +262,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Baseline,
         default: Made::ByName,
         recommend: None,
+        bytes_per_pixel: 78,
     },
     Row {
         method: Method::Bilateral,
@@ -261,6 +272,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Baseline,
         default: Made::ByName,
         recommend: None,
+        bytes_per_pixel: 25,
     },
     Row {
         method: Method::Median3,
@@ -270,6 +282,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Outside,
         default: Made::ByName,
         recommend: None,
+        bytes_per_pixel: 24,
     },
     Row {
         method: Method::FilteredBilateral,
@@ -282,6 +295,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Outside,
         default: Made::ByName,
         recommend: None,
+        bytes_per_pixel: 25,
     },
     Row {
         method: Method::Mon,
@@ -291,6 +305,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Peer(Param::MonGroups),
         default: Made::ByName,
         recommend: None,
+        bytes_per_pixel: 78,
     },
     Row {
         method: Method::Gmon,
@@ -300,6 +315,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Peer(Param::MonGroups),
         default: Made::ByName,
         recommend: None,
+        bytes_per_pixel: 78,
     },
     Row {
         method: Method::Rwmc,
@@ -309,6 +325,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Peer(Param::RwmcKappa),
         default: Made::ByName,
         recommend: None,
+        bytes_per_pixel: 49,
     },
     Row {
         method: Method::FilteredEnergy,
@@ -318,6 +335,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Grid,
         default: Made::ByDefault,
         recommend: Some(4),
+        bytes_per_pixel: 28,
     },
     Row {
         method: Method::Clamp,
@@ -327,6 +345,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Peer(Param::Clamp),
         default: Made::ByName,
         recommend: None,
+        bytes_per_pixel: 24,
     },
     Row {
         method: Method::FilteredEnergyBilateralCi,
@@ -339,6 +358,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Outside,
         default: Made::ByName,
         recommend: Some(3),
+        bytes_per_pixel: 78,
     },
     Row {
         method: Method::Oidn,
@@ -349,6 +369,7 @@ pub const TABLE: &[Row] = &[
         // Asked for by name, or with `denoise`.
         default: Made::ByName,
         recommend: None,
+        bytes_per_pixel: 58,
     },
     Row {
         method: Method::OidnCi,
@@ -358,6 +379,7 @@ pub const TABLE: &[Row] = &[
         role: Role::EqualTime,
         default: Made::ByName,
         recommend: Some(2),
+        bytes_per_pixel: 89,
     },
     Row {
         method: Method::Guided,
@@ -367,6 +389,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Outside,
         default: Made::ByDefault,
         recommend: Some(1),
+        bytes_per_pixel: 346,
     },
     Row {
         method: Method::GuidedOidn,
@@ -379,6 +402,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Outside,
         default: Made::InsteadOf(Method::Guided),
         recommend: Some(0),
+        bytes_per_pixel: 315,
     },
     Row {
         method: Method::Statmc,
@@ -388,6 +412,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Outside,
         default: Made::ByName,
         recommend: None,
+        bytes_per_pixel: 200,
     },
 ];
 

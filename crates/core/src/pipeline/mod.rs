@@ -282,7 +282,7 @@ pub fn run(
     if let Some(aux) = options.aux {
         check::aux_fits(aux, header)?;
     }
-    memory::check(config, header)?;
+    memory::check(config, header, options.reference.is_some())?;
     let pool = thread_pool(options.threads)?;
     let shared = Shared::new(records, header);
     let wanted = images_of(config);
