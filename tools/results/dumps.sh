@@ -5,9 +5,9 @@
 # pass-major, with one reference per scene (REF_SPP, default 1024, for ours;
 # MI_REF_SPP, default 4096, for Mitsuba's, rendered by Mitsuba itself).
 # Writes OUT/RENDERER-SCENE-SPP.pds and OUT/RENDERER-SCENE-ref.exr, and
-# OUT/RENDERER-SCENE-albedo.exr and -normal.exr, the denoisers' auxiliary
-# inputs (ours: 16 camera rays a pixel; Mitsuba's: 64 spp of its aov
-# integrator); a file already there is kept. Needs Mitsuba (bash tools/mitsuba/setup.sh). Blender Cycles'
+# OUT/RENDERER-SCENE-albedo.exr and -normal.exr, the denoisers'
+# auxiliary inputs (ours: 16 camera rays a pixel; Mitsuba's: 64 spp of
+# its aov integrator); a file already there is kept. Needs Mitsuba (bash tools/mitsuba/setup.sh). Blender Cycles'
 # builtin scenes (CYCLES_SCENES, default "caustic highlight room textured";
 # reference CY_REF_SPP, default 4096, by Cycles; albedo and normal from its
 # denoising passes) when tools/cycles/.venv exists (bash tools/cycles/setup.sh).
@@ -31,16 +31,26 @@ mkdir -p "$out"
 cargo build --release --quiet --bin render
 for s in $ours; do
     ref="$out/ours-$s-ref.exr"
+    albedo="$out/ours-$s-albedo.exr" normal="$out/ours-$s-normal.exr"
     for spp in $spps; do
         dump="$out/ours-$s-$spp.pds"
         [ -f "$dump" ] && continue
         refargs=()
-        [ -f "$ref" ] || refargs=(--reference-spp "$ref_spp" --reference-out "$ref"
-            --albedo-out "$out/ours-$s-albedo.exr" --normal-out "$out/ours-$s-normal.exr")
+        [ -f "$ref" ] || refargs=(--reference-spp "$ref_spp" --reference-out "$ref")
+        [ -f "$albedo" ] || refargs+=(--albedo-out "$albedo" --normal-out "$normal")
         ./target/release/render --scene "$s" --width "$size" --height "$size" --spp "$spp" \
             --order pass --threads "$threads" -o "$dump" "${refargs[@]}" > /dev/null
         echo "$dump" >&2
     done
+    # A folder made before the albedo and normal were written gets them.
+    if [ ! -f "$albedo" ]; then
+        tmp=$(mktemp -d)
+        ./target/release/render --scene "$s" --width "$size" --height "$size" --spp 1 \
+            --threads "$threads" -o "$tmp/aux.pds" --albedo-out "$albedo" \
+            --normal-out "$normal" > /dev/null
+        rm -r "$tmp"
+        echo "$albedo" >&2
+    fi
 done
 for s in $theirs; do
     ref="$out/mitsuba-$s-ref.exr"

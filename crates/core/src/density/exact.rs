@@ -59,6 +59,17 @@ impl ExactSigma {
         self != ExactSigma::None
     }
 
+    /// The bytes the kept σ of `records` records take, about
+    /// ([`super::kept::Sigmas`]).
+    pub fn bytes(self, records: u64) -> u64 {
+        match self {
+            ExactSigma::None => 0,
+            ExactSigma::All => 8 * records,
+            ExactSigma::OneIn(n) => 16 * (records / n.max(1) as u64),
+            ExactSigma::Strata(s) => 8 * (records / s.n.max(1) as u64),
+        }
+    }
+
     /// One in how many samples has its σ computed (None: all or none).
     pub fn share(self) -> Option<u32> {
         match self {

@@ -3,18 +3,21 @@
 //! the images follow the film, not the file. A run that cannot fit is
 //! refused in one line with the figure instead of aborting mid-way.
 //!
-//! The run's peak is the larger of two phases, per pixel of every frame:
+//! Per pixel of every frame, the run's peak is the larger of two phases:
 //! while the images are made, each made image keeps its result and the
 //! one whose making costs most adds its working buffers
 //! ([`crate::method::Row::bytes_per_pixel`]); while they are measured
-//! against a reference, each image has its metrics' buffers beside it.
-//! Beside the pixels, a few bytes a record (its decision and the replay's
-//! index) and the process's own. The mapped dump is the page cache's, not
-//! the process's, and is not counted. docs/BENCHMARKS.md ("Memory a film
-//! needs") has the measurements and how close the prediction comes.
+//! against a reference, each has its metrics' planes beside it. Beside
+//! the pixels: a few bytes a record, F6a's grid over every sample below
+//! [`GRID_SAMPLES`], the exact σ kept, the reference and the renderer's
+//! images, and the process's own. The mapped dump is the page cache's,
+//! not the process's, and is not counted. docs/BENCHMARKS.md ("Memory a
+//! film needs") has the measurements and how close the prediction comes.
 
-use super::PipelineError;
+use super::{PipelineError, RunOptions};
 use crate::config::FilterConfig;
+use crate::density::FinalPass;
+use crate::density::evidence::GRID_SAMPLES;
 use crate::dump::Header;
 use crate::method::Method;
 
@@ -22,28 +25,35 @@ use crate::method::Method;
 const FIXED: u64 = 24_000_000;
 /// Bytes OIDN's library holds once loaded (its weights and threads).
 const FIXED_OIDN: u64 = 150_000_000;
-/// Bytes a pixel costs in the bare run (the mean and filtered images, the
-/// occupancy, the reconstruction's sums).
-const PER_PIXEL: u64 = 28;
-/// Bytes an image holds a pixel once made (three f64).
+/// Bytes a pixel costs in the bare run, its pages written: the mean and
+/// filtered images, the occupancy, the reconstruction's sums, the
+/// replay's stored samples.
+const PER_PIXEL: u64 = 90;
+/// Bytes an image keeps a pixel once made (three f64).
 const IMAGE: u64 = 24;
-/// Bytes a pixel of the reference image costs, held the whole run.
-const REFERENCE: u64 = 24;
-/// Bytes a pixel costs while the images are measured: ꟻLIP's planes, and
-/// each image's beside them.
+/// Bytes a pixel costs while the images are measured, beside the bare
+/// run's: ꟻLIP's planes, and each image's with its own planes.
 const MEASURING: u64 = 61;
-const PER_IMAGE_MEASURED: u64 = IMAGE + 37;
-/// Bytes a record costs beside its mapped bytes (its decision byte and
-/// the replay's share of it).
-const PER_RECORD: u64 = 4;
+const PER_IMAGE_MEASURED: u64 = 61;
+/// Bytes a pixel of the reference, and of the renderer's albedo and
+/// normal, held the whole run.
+const REFERENCE: u64 = 24;
+const AUX: u64 = 24;
+/// Bytes a record costs beside its mapped bytes: its decision, the
+/// replay's share.
+const PER_RECORD: u64 = 3;
+/// Bytes a valid sample costs in F6a's grid over every sample.
+const PER_GRID_SAMPLE: u64 = 24;
 
-/// The bytes a run of `config` on a dump of `header` holds at its peak,
-/// about; `reference` whether its images are measured against one.
-pub fn needed(config: &FilterConfig, header: &Header, reference: bool) -> u64 {
-    let pixels = header.width as u64 * header.height as u64 * header.frames.max(1) as u64;
+/// The bytes a run of `config` with `options` on a dump of `header` holds
+/// at its peak, about.
+pub fn needed(config: &FilterConfig, header: &Header, options: &RunOptions) -> u64 {
+    let pixels = header.width as u64 * header.height as u64 * header.frames as u64;
+    let records = header.sample_count;
     let images = super::images_of(config);
     let oidn_bytes = Method::Oidn.row().bytes_per_pixel as u64;
-    // (working bytes, bytes kept once made) of each image a pixel.
+    // (working bytes, bytes kept once made) of each image, a pixel: an
+    // image OIDN denoises after its method keeps OIDN's buffers with it.
     let costs = images.iter().map(|&(m, denoised)| match denoised {
         true => (oidn_bytes, oidn_bytes),
         false => {
@@ -54,18 +64,39 @@ pub fn needed(config: &FilterConfig, header: &Header, reference: bool) -> u64 {
     let kept: u64 = costs.clone().map(|(_, k)| k).sum();
     let making = costs.map(|(b, k)| b - k).max().unwrap_or(0);
     let made = PER_PIXEL + kept + making;
-    let peak = match reference {
-        true => {
-            REFERENCE + made.max(PER_PIXEL + MEASURING + PER_IMAGE_MEASURED * images.len() as u64)
-        }
-        false => made,
+    let measuring = PER_PIXEL + MEASURING + PER_IMAGE_MEASURED * images.len() as u64;
+    let mut per_pixel = match options.reference {
+        Some(_) => made.max(measuring) + REFERENCE,
+        None => made,
+    };
+    if options.aux.is_some() {
+        per_pixel += AUX;
+    }
+    if options.exact_sigma.any() {
+        per_pixel += IMAGE; // the σ map
+    }
+    // Beyond GRID_SAMPLES the pass reads the dump past the stored samples.
+    let grid = match config.final_pass {
+        FinalPass::All if records <= GRID_SAMPLES => PER_GRID_SAMPLE * records,
+        _ => 0,
     };
     let oidn = images.iter().any(|&(m, d)| d || m.needs_oidn());
     let fixed = FIXED + if oidn { FIXED_OIDN } else { 0 };
     pixels
-        .saturating_mul(peak)
-        .saturating_add(header.sample_count.saturating_mul(PER_RECORD))
+        .saturating_mul(per_pixel)
+        .saturating_add(records.saturating_mul(PER_RECORD))
+        .saturating_add(grid)
+        .saturating_add(options.exact_sigma.bytes(records))
         .saturating_add(fixed)
+}
+
+/// What of [`needed`] the caller holds already: the reference and the
+/// renderer's images, read before the run.
+fn held(header: &Header, options: &RunOptions) -> u64 {
+    let pixels = header.width as u64 * header.height as u64 * header.frames as u64;
+    let reference = options.reference.map_or(0, |_| REFERENCE);
+    let aux = options.aux.map_or(0, |_| AUX);
+    pixels * (reference + aux)
 }
 
 /// The memory this machine can give a process now: Linux's estimate of
@@ -81,9 +112,14 @@ pub fn available() -> Option<u64> {
     Some(field("MemAvailable:")? + field("SwapFree:").unwrap_or(0))
 }
 
-/// Refuses a run that would need more memory than the machine has.
-pub fn check(config: &FilterConfig, header: &Header, reference: bool) -> Result<(), PipelineError> {
-    let needed = needed(config, header, reference);
+/// Refuses a run that would need more memory than the machine has: more
+/// than it has free beside what the caller holds already.
+pub fn check(
+    config: &FilterConfig,
+    header: &Header,
+    options: &RunOptions,
+) -> Result<(), PipelineError> {
+    let needed = needed(config, header, options).saturating_sub(held(header, options));
     match available() {
         Some(free) if needed > free => Err(PipelineError::Memory {
             needed,
@@ -101,11 +137,23 @@ pub fn check(config: &FilterConfig, header: &Header, reference: bool) -> Result<
 mod tests {
     use super::*;
     use crate::method::MethodSet;
+    use crate::progress::Silent;
+    use crate::recon::Image;
 
     fn config(methods: &str) -> FilterConfig {
         FilterConfig {
             methods: MethodSet::from_names(methods.split(',')).unwrap(),
             ..FilterConfig::default()
+        }
+    }
+
+    fn options(reference: Option<&Image>) -> RunOptions<'_> {
+        RunOptions {
+            threads: 1,
+            exact_sigma: crate::density::ExactSigma::None,
+            reference,
+            progress: &Silent,
+            aux: None,
         }
     }
 
@@ -116,15 +164,26 @@ mod tests {
         }
     }
 
-    /// The bare run of a 1080p × 64-spp dump holds about 0.5 GB (measured);
-    /// 16 bytes a record, as first fitted, predicted 2.5 GB and refused it
-    /// on a machine with 2 GB free.
+    const PIXELS: u64 = 1920 * 1080;
+
+    /// Each record costs a few bytes, and up to 2²⁴ F6a's grid a few more.
     #[test]
-    fn records_cost_a_few_bytes_each() {
-        let bare = needed(&config("mean,filtered"), &frame(132_710_400), false);
-        assert!(bare < 700_000_000, "{bare}");
-        let fewer = needed(&config("mean,filtered"), &frame(1_000), false);
-        assert_eq!(bare - fewer, (132_710_400 - 1_000) * PER_RECORD);
+    fn records_cost_a_few_bytes_and_the_grid_more_up_to_its_limit() {
+        let bare = config("mean,filtered");
+        let at = |n| needed(&bare, &frame(n), &options(None));
+        assert_eq!(
+            at(2_000) - at(1_000),
+            1_000 * (PER_RECORD + PER_GRID_SAMPLE)
+        );
+        let beyond = GRID_SAMPLES + 1_000;
+        assert_eq!(at(beyond + 1_000) - at(beyond), 1_000 * PER_RECORD);
+        assert!(at(beyond) < at(GRID_SAMPLES));
+        let stored = FilterConfig {
+            final_pass: FinalPass::Stored,
+            ..bare
+        };
+        let paper = needed(&stored, &frame(2_000), &options(None));
+        assert_eq!(at(2_000) - paper, 2_000 * PER_GRID_SAMPLE);
     }
 
     /// Only the costliest image adds its working buffers; each other image
@@ -132,39 +191,66 @@ mod tests {
     #[test]
     fn the_costliest_image_is_made_once_the_others_are_kept() {
         let h = frame(1_000);
-        let pixels = 1920 * 1080;
-        let guided = needed(&config("mean,filtered,guided"), &h, false);
-        let with_median3 = needed(&config("mean,filtered,guided,median3"), &h, false);
-        assert_eq!(with_median3 - guided, pixels * IMAGE);
-        let statmc = needed(&config("mean,filtered,statmc"), &h, false);
-        assert!(statmc < guided);
-        let both = needed(&config("mean,filtered,statmc,guided"), &h, false);
-        assert_eq!(both - guided, pixels * IMAGE);
+        let at = |m| needed(&config(m), &h, &options(None));
+        let guided = at("mean,filtered,guided");
+        assert_eq!(at("mean,filtered,guided,median3") - guided, PIXELS * IMAGE);
+        assert!(at("mean,filtered,statmc") < guided);
+        assert_eq!(at("mean,filtered,statmc,guided") - guided, PIXELS * IMAGE);
+        // Made alone, an image costs its row's bytes.
+        let bare = at("mean,filtered");
+        let row = Method::Guided.row().bytes_per_pixel as u64;
+        assert_eq!(guided - bare, PIXELS * row);
     }
 
-    /// A reference is held the whole run, and measuring many images can
-    /// cost more than making them.
+    /// A reference costs its image the whole run and, measuring many
+    /// images, more than making them; it is not counted twice against
+    /// the memory the caller already holds it in.
     #[test]
     fn a_reference_costs_its_image_and_the_measuring() {
         let h = frame(1_000);
-        let pixels = 1920 * 1080;
+        let reference = Image::new(1, 1, 1);
         let c = config("mean,filtered,guided");
-        let with = needed(&c, &h, true) - needed(&c, &h, false);
-        assert_eq!(with, pixels * REFERENCE);
+        let with = needed(&c, &h, &options(Some(&reference)));
+        assert_eq!(with - needed(&c, &h, &options(None)), PIXELS * REFERENCE);
+        assert_eq!(
+            with - held(&h, &options(Some(&reference))),
+            needed(&c, &h, &options(None))
+        );
         let many = config("mean,filtered,median,trimmed,bilateral,mon,gmon,rwmc,clamp,median3");
-        assert!(needed(&many, &h, true) - needed(&many, &h, false) > pixels * REFERENCE);
+        let more =
+            needed(&many, &h, &options(Some(&reference))) - needed(&many, &h, &options(None));
+        assert!(more > PIXELS * REFERENCE);
     }
 
     /// OIDN's library is counted once, whichever images use it.
     #[test]
     fn oidn_is_loaded_once() {
         let h = frame(1_000);
-        let one = needed(&config("mean,filtered,oidn"), &h, false);
-        let none = needed(&config("mean,filtered,statmc"), &h, false);
-        let oidn = Method::Oidn.row().bytes_per_pixel as u64;
-        let statmc = Method::Statmc.row().bytes_per_pixel as u64;
-        assert_eq!(one - none + 1920 * 1080 * (statmc - oidn), FIXED_OIDN);
-        let two = needed(&config("mean,filtered,oidn,oidn_ci"), &h, false);
-        assert!(two - one < FIXED_OIDN);
+        let at = |m| needed(&config(m), &h, &options(None));
+        let row = |m: Method| m.row().bytes_per_pixel as u64;
+        let one = at("mean,filtered,oidn");
+        let bare = at("mean,filtered");
+        assert_eq!(one, bare + PIXELS * row(Method::Oidn) + FIXED_OIDN);
+        let two = at("mean,filtered,oidn,oidn_ci");
+        assert_eq!(
+            two,
+            bare + PIXELS * (IMAGE + row(Method::OidnCi)) + FIXED_OIDN
+        );
+    }
+
+    /// Every frame is a film of its own.
+    #[test]
+    fn frames_multiply_the_pixels() {
+        let c = config("mean,filtered,guided");
+        let one = needed(&c, &frame(0), &options(None));
+        let two = needed(
+            &c,
+            &Header {
+                frames: 2,
+                ..frame(0)
+            },
+            &options(None),
+        );
+        assert_eq!(two - one, one - FIXED);
     }
 }

@@ -39,7 +39,7 @@ pub enum PipelineError {
     )]
     NoWhite,
     #[error(
-        "its {film} film needs about {:.1} GB for the images, and this machine has {:.1} GB free (fewer --methods, or a smaller film)",
+        "its {film} film needs about {:.1} GB more for the run, and this machine has {:.1} GB free (fewer --methods, or a smaller film)",
         *needed as f64 / 1e9,
         *free as f64 / 1e9
     )]
@@ -282,7 +282,7 @@ pub fn run(
     if let Some(aux) = options.aux {
         check::aux_fits(aux, header)?;
     }
-    memory::check(config, header, options.reference.is_some())?;
+    memory::check(config, header, options)?;
     let pool = thread_pool(options.threads)?;
     let shared = Shared::new(records, header);
     let wanted = images_of(config);
