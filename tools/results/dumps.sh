@@ -37,18 +37,20 @@ for s in $ours; do
         [ -f "$dump" ] && continue
         refargs=()
         [ -f "$ref" ] || refargs=(--reference-spp "$ref_spp" --reference-out "$ref")
-        [ -f "$albedo" ] || refargs+=(--albedo-out "$albedo" --normal-out "$normal")
+        [ -f "$albedo" ] && [ -f "$normal" ] ||
+            refargs+=(--albedo-out "$albedo" --normal-out "$normal")
         ./target/release/render --scene "$s" --width "$size" --height "$size" --spp "$spp" \
             --order pass --threads "$threads" -o "$dump" "${refargs[@]}" > /dev/null
         echo "$dump" >&2
     done
     # A folder made before the albedo and normal were written gets them.
-    if [ ! -f "$albedo" ]; then
+    if [ ! -f "$albedo" ] || [ ! -f "$normal" ]; then
         tmp=$(mktemp -d)
+        trap 'rm -rf "$tmp"' EXIT
         ./target/release/render --scene "$s" --width "$size" --height "$size" --spp 1 \
             --threads "$threads" -o "$tmp/aux.pds" --albedo-out "$albedo" \
             --normal-out "$normal" > /dev/null
-        rm -r "$tmp"
+        rm -rf "$tmp"
         echo "$albedo" >&2
     fi
 done

@@ -59,14 +59,15 @@ impl ExactSigma {
         self != ExactSigma::None
     }
 
-    /// The bytes the kept σ of `records` records take, about
-    /// ([`super::kept::Sigmas`]).
+    /// The bytes the kept σ of `records` records take
+    /// ([`super::kept::Sigmas`]): exact but for `OneIn`, whose pairs are
+    /// about one in n and whose vector may hold up to twice its length.
     pub fn bytes(self, records: u64) -> u64 {
         match self {
             ExactSigma::None => 0,
             ExactSigma::All => 8 * records,
-            ExactSigma::OneIn(n) => 16 * (records / n.max(1) as u64),
-            ExactSigma::Strata(s) => 8 * (records / s.n.max(1) as u64),
+            ExactSigma::OneIn(n) => 2 * 16 * (records / n.max(1) as u64),
+            ExactSigma::Strata(s) => 8 * (records / s.spp * s.per_pixel()),
         }
     }
 

@@ -389,7 +389,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Outside,
         default: Made::ByDefault,
         recommend: Some(1),
-        bytes_per_pixel: 355,
+        bytes_per_pixel: 365,
     },
     Row {
         method: Method::GuidedOidn,
@@ -402,7 +402,7 @@ pub const TABLE: &[Row] = &[
         role: Role::Outside,
         default: Made::InsteadOf(Method::Guided),
         recommend: Some(0),
-        bytes_per_pixel: 300,
+        bytes_per_pixel: 307,
     },
     Row {
         method: Method::Statmc,

@@ -8,9 +8,11 @@
 //! one whose making costs most adds its working buffers
 //! ([`crate::method::Row::bytes_per_pixel`]); while they are measured
 //! against a reference, each has its metrics' planes beside it. Beside
-//! the pixels: a few bytes a record, F6a's grid over every sample below
-//! [`GRID_SAMPLES`], the exact σ kept, the reference and the renderer's
-//! images, and the process's own. The mapped dump is the page cache's,
+//! the pixels: a few bytes a record, F6a's grid over every sample up to
+//! [`GRID_SAMPLES`] records (it counts valid samples: a dump with more
+//! records and fewer valid ones than that is under-predicted), the
+//! exact σ kept, the reference and the renderer's images, and the
+//! process's own. The mapped dump is the page cache's,
 //! not the process's, and is not counted. docs/BENCHMARKS.md ("Memory a
 //! film needs") has the measurements and how close the prediction comes.
 
@@ -39,6 +41,8 @@ const PER_IMAGE_MEASURED: u64 = 61;
 /// normal, held the whole run.
 const REFERENCE: u64 = 24;
 const AUX: u64 = 24;
+/// Bytes a pixel of the σ map: its image and its sums.
+const SIGMA_MAP: u64 = IMAGE + 16;
 /// Bytes a record costs beside its mapped bytes: its decision, the
 /// replay's share.
 const PER_RECORD: u64 = 3;
@@ -73,7 +77,7 @@ pub fn needed(config: &FilterConfig, header: &Header, options: &RunOptions) -> u
         per_pixel += AUX;
     }
     if options.exact_sigma.any() {
-        per_pixel += IMAGE; // the σ map
+        per_pixel += SIGMA_MAP;
     }
     // Beyond GRID_SAMPLES the pass reads the dump past the stored samples.
     let grid = match config.final_pass {
@@ -167,17 +171,23 @@ mod tests {
     const PIXELS: u64 = 1920 * 1080;
 
     /// Each record costs a few bytes, and up to 2²⁴ F6a's grid a few more.
+    /// The bare run of the 1080p × 64-spp frame is predicted under 0.7 GB
+    /// (docs/BENCHMARKS.md has what it measured).
     #[test]
     fn records_cost_a_few_bytes_and_the_grid_more_up_to_its_limit() {
         let bare = config("mean,filtered");
         let at = |n| needed(&bare, &frame(n), &options(None));
+        assert!(at(1920 * 1080 * 64) < 700_000_000);
         assert_eq!(
             at(2_000) - at(1_000),
             1_000 * (PER_RECORD + PER_GRID_SAMPLE)
         );
         let beyond = GRID_SAMPLES + 1_000;
         assert_eq!(at(beyond + 1_000) - at(beyond), 1_000 * PER_RECORD);
-        assert!(at(beyond) < at(GRID_SAMPLES));
+        assert_eq!(
+            at(GRID_SAMPLES) - at(GRID_SAMPLES + 1),
+            GRID_SAMPLES * PER_GRID_SAMPLE - PER_RECORD
+        );
         let stored = FilterConfig {
             final_pass: FinalPass::Stored,
             ..bare
@@ -235,6 +245,31 @@ mod tests {
         assert_eq!(
             two,
             bare + PIXELS * (IMAGE + row(Method::OidnCi)) + FIXED_OIDN
+        );
+    }
+
+    /// The renderer's images are held the whole run and, like the
+    /// reference, not counted twice against what the caller holds; the
+    /// σ map costs its image, its sums and its kept σ.
+    #[test]
+    fn the_albedo_and_the_sigma_map_are_counted() {
+        let h = frame(1_000);
+        let c = config("mean,filtered,guided");
+        let plain = needed(&c, &h, &options(None));
+        let aux = crate::imagespace::oidn::Aux::new(&Image::new(1, 1, 1), None);
+        let with_aux = RunOptions {
+            aux: Some(&aux),
+            ..options(None)
+        };
+        assert_eq!(needed(&c, &h, &with_aux) - plain, PIXELS * AUX);
+        assert_eq!(needed(&c, &h, &with_aux) - held(&h, &with_aux), plain);
+        let sigma = RunOptions {
+            exact_sigma: crate::density::ExactSigma::All,
+            ..options(None)
+        };
+        assert_eq!(
+            needed(&c, &h, &sigma) - plain,
+            PIXELS * SIGMA_MAP + 8 * 1_000
         );
     }
 
