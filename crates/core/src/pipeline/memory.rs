@@ -273,6 +273,19 @@ mod tests {
         );
     }
 
+    /// An image the bare run does not make costs at least what it keeps:
+    /// a row below that would be counted as keeping less than its image.
+    #[test]
+    fn every_row_costs_at_least_its_image() {
+        for m in Method::ALL {
+            let bytes = m.row().bytes_per_pixel as u64;
+            match m {
+                Method::Mean | Method::Filtered => assert_eq!(bytes, 0),
+                _ => assert!(bytes >= IMAGE, "{}", m.row().name),
+            }
+        }
+    }
+
     /// Every frame is a film of its own.
     #[test]
     fn frames_multiply_the_pixels() {
