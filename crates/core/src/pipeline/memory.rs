@@ -52,7 +52,7 @@ const PER_GRID_SAMPLE: u64 = 24;
 /// The bytes a run of `config` with `options` on a dump of `header` holds
 /// at its peak, about.
 pub fn needed(config: &FilterConfig, header: &Header, options: &RunOptions) -> u64 {
-    let pixels = header.width as u64 * header.height as u64 * header.frames as u64;
+    let pixels = film_pixels(header);
     let records = header.sample_count;
     let images = super::images_of(config);
     let oidn_bytes = Method::Oidn.row().bytes_per_pixel as u64;
@@ -94,10 +94,15 @@ pub fn needed(config: &FilterConfig, header: &Header, options: &RunOptions) -> u
         .saturating_add(fixed)
 }
 
+/// The pixels of every frame.
+fn film_pixels(header: &Header) -> u64 {
+    header.pixels() as u64 * header.frames as u64
+}
+
 /// What of [`needed`] the caller holds already: the reference and the
 /// renderer's images, read before the run.
 fn held(header: &Header, options: &RunOptions) -> u64 {
-    let pixels = header.width as u64 * header.height as u64 * header.frames as u64;
+    let pixels = film_pixels(header);
     let reference = options.reference.map_or(0, |_| REFERENCE);
     let aux = options.aux.map_or(0, |_| AUX);
     pixels * (reference + aux)
