@@ -19,8 +19,16 @@
 //! channel, and so the energy ratio, stays that of the mean. Only pixels
 //! holding samples receive energy, and the weights are normalised over those
 //! inside the frame, so nothing leaks off the film.
+//!
+//! A source whose spread would still stand out of what it lands on
+//! ([`STANDOUT`]) is not given back: no width of the spread hides it, and
+//! its blur is a feature the reference does not have (a halo where the
+//! spike was a sub-pixel light, a blob where it was a firefly). It stays
+//! removed, as in the filtered image. Putting it back in its own pixel
+//! instead brings back the fireflies (docs/RESULTS.md).
 
 use super::Image;
+use crate::joint::lab;
 use crate::par::prelude::*;
 
 /// Per pixel, `mean − filtered`.
@@ -42,21 +50,29 @@ pub fn removed_by(mean: &Image, filtered: impl Fn(usize) -> [f64; 3]) -> Image {
 
 /// `filtered` plus `removed` spread over each source pixel's neighbourhood
 /// (radius ⌈3σ_e⌉) with weights exp(−d²/2σ_e²) normalised over the
-/// occupied pixels of its frame. Every pixel receives its shares in the
-/// order of the sources' pixels, so the result does not depend on threads.
+/// occupied pixels of its frame, except a source that stands out
+/// ([`STANDOUT`]), which stays removed. Every pixel receives
+/// its shares in the order of the sources' pixels, so the result does not
+/// depend on threads.
 ///
 /// ```
 /// use pathdensity_core::recon::{Image, energy};
-/// let mut mean = Image::new(5, 5, 1);
-/// mean.data[12] = [26.0; 3]; // a firefly at the centre, all else 0
-/// let filtered = Image::new(5, 5, 1);
+/// let mut filtered = Image::new(5, 5, 1);
+/// filtered.data.fill([5.0; 3]);
+/// let mut mean = filtered.clone();
+/// mean.data[12] = [31.0; 3]; // a firefly at the centre
 /// let occupancy = vec![1; 25];
 /// let removed = energy::removed(&mean, &filtered);
 /// let out = energy::energy_aware(&filtered, &removed, &occupancy, 100.0);
-/// // σ_e far above the film: the 26 units are spread almost evenly.
-/// let total: f64 = out.data.iter().map(|p| p[0]).sum();
+/// // σ_e far above the film: the 26 units are spread almost evenly, each
+/// // share well below the background of 5.
+/// let total: f64 = out.data.iter().map(|p| p[0] - 5.0).sum();
 /// assert!((total - 26.0).abs() < 1e-9);
-/// assert!(out.data.iter().all(|p| (p[0] - 26.0 / 25.0).abs() < 0.01));
+/// assert!(out.data.iter().all(|p| (p[0] - 5.0 - 26.0 / 25.0).abs() < 0.01));
+/// // On a black film no spread hides it: it stays removed.
+/// let black = Image::new(5, 5, 1);
+/// let out = energy::energy_aware(&black, &energy::removed(&mean, &black), &occupancy, 100.0);
+/// assert!(out.data.iter().all(|p| *p == [0.0; 3]));
 /// ```
 pub fn energy_aware(filtered: &Image, removed: &Image, occupancy: &[u32], sigma: f64) -> Image {
     let mut out = filtered.clone();
@@ -65,17 +81,29 @@ pub fn energy_aware(filtered: &Image, removed: &Image, occupancy: &[u32], sigma:
 }
 
 /// [`energy_aware`] in place: `removed` spread into `out`, the filtered
-/// image.
+/// image (or a denoised one: what the energy lands on).
 pub fn spread_into(out: &mut Image, removed: &Image, occupancy: &[u32], sigma: f64) {
     let spread = Spread::new(out, sigma, occupancy);
-    // The sources, in pixel order, each with its window's total weight.
+    // What a source lands on: the log luminance its window averages.
+    let level: Vec<f64> = out
+        .data
+        .par_iter()
+        .map(|p| lab::luminance(*p).max(LEVEL_FLOOR).ln())
+        .collect();
+    // The sources given back, in pixel order, each with its window's
+    // total weight.
     let sources: Vec<(usize, f64)> = (0..removed.data.len())
         .into_par_iter()
         .filter(|&src| removed.data[src] != [0.0; 3] && occupancy[src] > 0)
-        .map(|src| {
-            let mut total = 0.0;
-            spread.window(src, 0..spread.rows, |_, k| total += k);
-            (src, total)
+        .filter_map(|src| {
+            let (mut total, mut log_level) = (0.0, 0.0);
+            spread.window(src, 0..spread.rows, |q, k| {
+                total += k;
+                log_level += k * level[q];
+            });
+            let peak = lab::luminance(removed.data[src]) / total;
+            let stands_out = peak > STANDOUT * (log_level / total).exp();
+            (!stands_out).then_some((src, total))
         })
         .collect();
     let w = spread.w.max(1);
@@ -100,6 +128,17 @@ pub fn spread_into(out: &mut Image, removed: &Image, occupancy: &[u32], sigma: f
             }
         });
 }
+
+/// A source stands out, and stays removed, where its spread's
+/// peak, e/Σk (the luminance of its removed radiance over its window's
+/// total weight), exceeds this many times the geometric mean of the
+/// luminance it would land on ([`spread_into`]). Chosen by measurement
+/// over 0.05–1 and ∞ (docs/RESULTS.md, "A source that stands out").
+pub const STANDOUT: f64 = 0.25;
+
+/// The luminance below which a pixel counts as this dark in that
+/// geometric mean, so that a black window has a finite level.
+const LEVEL_FLOOR: f64 = 1e-4;
 
 /// Rows of the film (over all frames) that one job of [`energy_aware`]
 /// writes.
@@ -202,8 +241,17 @@ mod tests {
                     }
                 }
             };
-            let mut total = 0.0;
-            window(&mut |_, k| total += k);
+            let (mut total, mut log_level) = (0.0, 0.0);
+            window(&mut |q, k| {
+                total += k;
+                log_level += k * crate::joint::lab::luminance(filtered.data[q])
+                    .max(1e-4)
+                    .ln();
+            });
+            let peak = crate::joint::lab::luminance(*e) / total;
+            if peak > STANDOUT * (log_level / total).exp() {
+                continue;
+            }
             window(&mut |q, k| {
                 for (o, v) in out.data[q].iter_mut().zip(e) {
                     *o += v * k / total;
@@ -244,12 +292,14 @@ mod tests {
 
     #[test]
     fn spreading_conserves_each_channel_and_skips_empty_pixels() {
-        let mut mean = Image::new(7, 4, 2);
+        // A background no share stands out of, an empty pixel (4), a
+        // bright source in frame 0 and a dark one in frame 1.
         let mut filtered = Image::new(7, 4, 2);
+        filtered.data.fill([4.0; 3]);
+        filtered.data[4] = [0.0; 3];
+        let mut mean = filtered.clone();
         mean.data[3] = [10.0, 5.0, -1.0];
         mean.data[7 * 4 + 27] = [0.0, 0.0, 8.0]; // frame 1's last pixel
-        filtered.data[9] = [1.0; 3];
-        mean.data[9] = [1.0; 3];
         let mut occupancy = vec![1u32; 56];
         occupancy[4] = 0;
         let rem = removed(&mean, &filtered);
@@ -261,7 +311,8 @@ mod tests {
         }
         assert_eq!(out.data[4], [0.0; 3], "an empty pixel receives nothing");
         // Frame 0's energy stays in frame 0.
-        let f0: f64 = out.data[..28].iter().map(|p| p[0] + p[1] + p[2]).sum();
-        assert!((f0 - (14.0 + 3.0)).abs() < 1e-12);
+        let sum = |i: &Image| -> f64 { i.data[..28].iter().map(|p| p[0] + p[1] + p[2]).sum() };
+        assert!((sum(&out) - sum(&mean)).abs() < 1e-12);
+        assert!(out.data[3][0] < 5.0, "the source was spread");
     }
 }
