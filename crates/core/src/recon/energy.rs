@@ -69,9 +69,11 @@ pub fn removed_by(mean: &Image, filtered: impl Fn(usize) -> [f64; 3]) -> Image {
 /// let total: f64 = out.data.iter().map(|p| p[0] - 5.0).sum();
 /// assert!((total - 26.0).abs() < 1e-9);
 /// assert!(out.data.iter().all(|p| (p[0] - 5.0 - 26.0 / 25.0).abs() < 0.01));
-/// // On a black film no spread hides it: it stays removed.
+/// // On a black film no spread hides a lone spike: it stays removed.
 /// let black = Image::new(5, 5, 1);
-/// let out = energy::energy_aware(&black, &energy::removed(&mean, &black), &occupancy, 100.0);
+/// let mut spike = black.clone();
+/// spike.data[12] = [26.0; 3];
+/// let out = energy::energy_aware(&black, &energy::removed(&spike, &black), &occupancy, 100.0);
 /// assert!(out.data.iter().all(|p| *p == [0.0; 3]));
 /// ```
 pub fn energy_aware(filtered: &Image, removed: &Image, occupancy: &[u32], sigma: f64) -> Image {
@@ -84,28 +86,55 @@ pub fn energy_aware(filtered: &Image, removed: &Image, occupancy: &[u32], sigma:
 /// image (or a denoised one: what the energy lands on).
 pub fn spread_into(out: &mut Image, removed: &Image, occupancy: &[u32], sigma: f64) {
     let spread = Spread::new(out, sigma, occupancy);
-    // What a source lands on: the log luminance its window averages.
-    let level: Vec<f64> = out
+    // What a source lands on: the log luminance its window averages,
+    // floored relative to the film's mean, so that a black window has a
+    // finite level and the rule does not depend on the dump's units.
+    let floor = LEVEL_FLOOR * mean_luminance(out, occupancy);
+    let level: Vec<f32> = out
         .data
         .par_iter()
-        .map(|p| lab::luminance(*p).max(LEVEL_FLOOR).ln())
+        .map(|p| lab::luminance(*p).max(floor).ln() as f32)
         .collect();
-    // The sources given back, in pixel order, each with its window's
-    // total weight.
-    let sources: Vec<(usize, f64)> = (0..removed.data.len())
+    // Every source with its window's total weight and its level's
+    // geometric mean, in pixel order.
+    let all: Vec<(usize, f64, f64)> = (0..removed.data.len())
         .into_par_iter()
         .filter(|&src| removed.data[src] != [0.0; 3] && occupancy[src] > 0)
-        .filter_map(|src| {
+        .map(|src| {
             let (mut total, mut log_level) = (0.0, 0.0);
             spread.window(src, 0..spread.rows, |q, k| {
                 total += k;
-                log_level += k * level[q];
+                log_level += k * level[q] as f64;
+            });
+            (src, total, (log_level / total).exp())
+        })
+        .collect();
+    drop(level);
+    // Each source's peak, e/Σk of its luminance (0 for a dark one): what
+    // its spread adds at its own pixel.
+    let mut peaks = vec![0f32; removed.data.len()];
+    for &(src, total, _) in &all {
+        peaks[src] = (lab::luminance(removed.data[src]).max(0.0) / total) as f32;
+    }
+    // The sources given back: those whose peak does not stand out of the
+    // level plus what the other sources' spreads add at its pixel (a
+    // source among many is part of one smooth field: a caustic, a room's
+    // indirect light).
+    let sources: Vec<(usize, f64)> = all
+        .par_iter()
+        .filter_map(|&(src, total, geo_level)| {
+            let mut others = 0.0;
+            spread.window(src, 0..spread.rows, |q, k| {
+                if q != src {
+                    others += k * peaks[q] as f64;
+                }
             });
             let peak = lab::luminance(removed.data[src]) / total;
-            let stands_out = peak > STANDOUT * (log_level / total).exp();
+            let stands_out = peak > STANDOUT * (geo_level + others);
             (!stands_out).then_some((src, total))
         })
         .collect();
+    drop((all, peaks));
     let w = spread.w.max(1);
     // A band of rows a job: each takes, in pixel order, the sources whose
     // window reaches it, and writes only its own rows.
@@ -136,9 +165,24 @@ pub fn spread_into(out: &mut Image, removed: &Image, occupancy: &[u32], sigma: f
 /// over 0.05–1 and ∞ (docs/RESULTS.md, "A source that stands out").
 pub const STANDOUT: f64 = 0.25;
 
-/// The luminance below which a pixel counts as this dark in that
-/// geometric mean, so that a black window has a finite level.
+/// The luminance, relative to the film's mean, below which a pixel
+/// counts as this dark in that geometric mean.
 const LEVEL_FLOOR: f64 = 1e-4;
+
+/// The mean luminance of the occupied pixels of `img` (the smallest
+/// positive f64 where it is not positive), summed in pixel order.
+fn mean_luminance(img: &Image, occupancy: &[u32]) -> f64 {
+    let (sum, n) = img
+        .data
+        .iter()
+        .zip(occupancy)
+        .filter(|(_, o)| **o > 0)
+        .fold((0.0, 0usize), |(s, n), (p, _)| {
+            (s + lab::luminance(*p), n + 1)
+        });
+    let mean = sum / n.max(1) as f64;
+    if mean > 0.0 { mean } else { f64::MIN_POSITIVE }
+}
 
 /// Rows of the film (over all frames) that one job of [`energy_aware`]
 /// writes.
@@ -207,77 +251,125 @@ pub fn channel_sums(img: &Image) -> [f64; 3] {
 mod tests {
     use super::*;
 
-    /// The spread source by source, each over its whole window, as it was
-    /// written before the bands (its own kernel and window): the oracle.
-    fn serial(filtered: &Image, removed: &Image, occupancy: &[u32], sigma: f64) -> Image {
+    /// The spread source by source, each over its whole window (its own
+    /// kernel and window, no bands), with the standing-out test of
+    /// docs/filter.md written out: the oracle. Also the numbers of
+    /// sources spread and left removed.
+    fn serial(
+        filtered: &Image,
+        removed: &Image,
+        occupancy: &[u32],
+        sigma: f64,
+    ) -> (Image, usize, usize) {
+        use crate::joint::lab::luminance;
         let (w, h) = (filtered.width, filtered.height);
         let r = (3.0 * sigma).ceil().max(0.0) as isize;
         let kernel: Vec<f64> = (-r..=r)
             .map(|d| (-((d * d) as f64) / (2.0 * sigma * sigma)).exp())
             .collect();
-        let mut out = filtered.clone();
         let n = w * h;
-        for (src, e) in removed.data.iter().enumerate() {
-            if *e == [0.0; 3] || occupancy[src] == 0 {
-                continue;
-            }
+        let window = |src: usize, visit: &mut dyn FnMut(usize, f64)| {
             let frame = src / n * n;
             let (x, y) = (((src % n) % w) as isize, ((src % n) / w) as isize);
-            let window = |visit: &mut dyn FnMut(usize, f64)| {
-                for dy in -r..=r {
-                    let qy = y + dy;
-                    if qy < 0 || qy >= h as isize {
+            for dy in -r..=r {
+                let qy = y + dy;
+                if qy < 0 || qy >= h as isize {
+                    continue;
+                }
+                for dx in -r..=r {
+                    let qx = x + dx;
+                    if qx < 0 || qx >= w as isize {
                         continue;
                     }
-                    for dx in -r..=r {
-                        let qx = x + dx;
-                        if qx < 0 || qx >= w as isize {
-                            continue;
-                        }
-                        let q = frame + qy as usize * w + qx as usize;
-                        if occupancy[q] > 0 {
-                            visit(q, kernel[(dy + r) as usize] * kernel[(dx + r) as usize]);
-                        }
+                    let q = frame + qy as usize * w + qx as usize;
+                    if occupancy[q] > 0 {
+                        visit(q, kernel[(dy + r) as usize] * kernel[(dx + r) as usize]);
                     }
                 }
-            };
+            }
+        };
+        let (mut sum, mut count) = (0.0, 0);
+        for (p, &o) in filtered.data.iter().zip(occupancy) {
+            if o > 0 {
+                sum += luminance(*p);
+                count += 1;
+            }
+        }
+        let mean = sum / count.max(1) as f64;
+        let floor = 1e-4 * if mean > 0.0 { mean } else { f64::MIN_POSITIVE };
+        let sources: Vec<usize> = (0..removed.data.len())
+            .filter(|&s| removed.data[s] != [0.0; 3] && occupancy[s] > 0)
+            .collect();
+        let (mut totals, mut levels) =
+            (vec![0.0; removed.data.len()], vec![0.0; removed.data.len()]);
+        let mut peaks = vec![0f32; removed.data.len()];
+        for &src in &sources {
             let (mut total, mut log_level) = (0.0, 0.0);
-            window(&mut |q, k| {
+            window(src, &mut |q, k| {
                 total += k;
-                log_level += k * crate::joint::lab::luminance(filtered.data[q])
-                    .max(1e-4)
-                    .ln();
+                log_level += k * luminance(filtered.data[q]).max(floor).ln() as f32 as f64;
             });
-            let peak = crate::joint::lab::luminance(*e) / total;
-            if peak > STANDOUT * (log_level / total).exp() {
+            totals[src] = total;
+            levels[src] = (log_level / total).exp();
+            peaks[src] = (luminance(removed.data[src]).max(0.0) / total) as f32;
+        }
+        let mut out = filtered.clone();
+        let (mut spread, mut left) = (0, 0);
+        for &src in &sources {
+            let (e, total) = (removed.data[src], totals[src]);
+            let mut others = 0.0;
+            window(src, &mut |q, k| {
+                if q != src {
+                    others += k * peaks[q] as f64;
+                }
+            });
+            if luminance(e) / total > STANDOUT * (levels[src] + others) {
+                left += 1;
                 continue;
             }
-            window(&mut |q, k| {
+            spread += 1;
+            window(src, &mut |q, k| {
                 for (o, v) in out.data[q].iter_mut().zip(e) {
                     *o += v * k / total;
                 }
             });
         }
-        out
+        (out, spread, left)
     }
 
     /// Bands of every height against the serial spread, bit for bit, on
-    /// films of two frames, sparse sources and empty pixels, windows wider
-    /// and narrower than a band, for one and three threads.
+    /// films of two frames, sparse sources, black and empty pixels,
+    /// windows wider and narrower than a band, for one and three threads;
+    /// on each film but the single pixel some sources are spread and some
+    /// left removed.
     #[test]
     fn bands_are_the_serial_spread() {
         let mut unit = crate::synth::test_units(99);
-        for (w, h, sigma) in [(37, 45, 8.0), (5, 70, 1.5), (60, 3, 0.4), (1, 1, 2.0)] {
+        let films = [
+            (37, 45, 8.0, 1.0),
+            (5, 70, 1.5, 20.0),
+            (60, 3, 0.4, 40.0),
+            (1, 1, 2.0, 1.0),
+        ];
+        for (w, h, sigma, background) in films {
             let mut removed = Image::new(w, h, 2);
             let mut filtered = Image::new(w, h, 2);
             let occupancy: Vec<u32> = (0..w * h * 2).map(|_| u32::from(unit() < 0.9)).collect();
             for (f, e) in filtered.data.iter_mut().zip(&mut removed.data) {
-                *f = std::array::from_fn(|_| unit());
+                if unit() < 0.9 {
+                    *f = std::array::from_fn(|_| background * unit());
+                }
                 if unit() < 0.1 {
                     *e = std::array::from_fn(|_| 100.0 * unit() - 10.0);
                 }
             }
-            let want = serial(&filtered, &removed, &occupancy, sigma);
+            let (want, spread, left) = serial(&filtered, &removed, &occupancy, sigma);
+            if w * h > 1 {
+                assert!(
+                    spread > 0 && left > 0,
+                    "{w} × {h}: {spread} spread, {left} left"
+                );
+            }
             for threads in [1, 3] {
                 let got = crate::par::pool(threads)
                     .unwrap()
@@ -288,6 +380,37 @@ mod tests {
                 assert_eq!(bits(&got), bits(&want), "{w} × {h}, σ_e {sigma}");
             }
         }
+    }
+
+    /// A source among many is part of one smooth field and is spread; the
+    /// same source alone on the same dim background stands out and stays
+    /// removed.
+    #[test]
+    fn a_lone_source_stands_out_and_a_field_of_them_does_not() {
+        let (w, h, sigma) = (40, 20, 2.0);
+        let mut filtered = Image::new(w, h, 1);
+        filtered.data.fill([0.01; 3]);
+        let mut removed = Image::new(w, h, 1);
+        // A 7 × 7 field of sources around (8, 10), one alone at (32, 10).
+        for y in 7..14 {
+            for x in 5..12 {
+                removed.data[y * w + x] = [1.0; 3];
+            }
+        }
+        removed.data[10 * w + 32] = [1.0; 3];
+        let occupancy = vec![1; w * h];
+        let out = energy_aware(&filtered, &removed, &occupancy, sigma);
+        let (want, spread, left) = serial(&filtered, &removed, &occupancy, sigma);
+        assert_eq!((spread, left), (49, 1));
+        assert_eq!(out.data, want.data);
+        let given_back = |xs: std::ops::Range<usize>| -> f64 {
+            (0..h)
+                .flat_map(|y| xs.clone().map(move |x| y * w + x))
+                .map(|p| out.data[p][0] - filtered.data[p][0])
+                .sum()
+        };
+        assert!((given_back(0..20) - 49.0).abs() < 1e-9);
+        assert_eq!(given_back(20..40), 0.0);
     }
 
     #[test]
@@ -313,6 +436,9 @@ mod tests {
         // Frame 0's energy stays in frame 0.
         let sum = |i: &Image| -> f64 { i.data[..28].iter().map(|p| p[0] + p[1] + p[2]).sum() };
         assert!((sum(&out) - sum(&mean)).abs() < 1e-12);
-        assert!(out.data[3][0] < 5.0, "the source was spread");
+        assert!(
+            out.data[3][0] < 5.0 && out.data[2][0] > 4.0,
+            "the source was spread"
+        );
     }
 }
