@@ -16,7 +16,8 @@
 //! smooth over many pixels; the filter's fault is only that one pixel got
 //! all of it. Spreading over 2πσ_e² pixels divides the spike's amplitude by
 //! that area (σ_e = 8: about 400×) while the film's total radiance per
-//! channel, and so the energy ratio, stays that of the mean. Only pixels
+//! channel, and so the energy ratio, stays that of the mean (less the
+//! sources that stand out, below). Only pixels
 //! holding samples receive energy, and the weights are normalised over those
 //! inside the frame, so nothing leaks off the film.
 //!
@@ -24,7 +25,10 @@
 //! ([`STANDOUT`]) is not given back: no width of the spread hides it, and
 //! its blur is a feature the reference does not have (a halo where the
 //! spike was a sub-pixel light, a blob where it was a firefly). It stays
-//! removed, as in the filtered image. Putting it back in its own pixel
+//! removed, as in the filtered image. What it lands on includes the
+//! other sources' spread: a source among many (a caustic's paths, a dim
+//! room's indirect light at few samples) is part of one smooth field,
+//! which the spread restores. Putting a lone one back in its own pixel
 //! instead brings back the fireflies (docs/RESULTS.md).
 
 use super::Image;
@@ -158,11 +162,13 @@ pub fn spread_into(out: &mut Image, removed: &Image, occupancy: &[u32], sigma: f
         });
 }
 
-/// A source stands out, and stays removed, where its spread's
-/// peak, e/Σk (the luminance of its removed radiance over its window's
-/// total weight), exceeds this many times the geometric mean of the
-/// luminance it would land on ([`spread_into`]). Chosen by measurement
-/// over 0.05–1 and ∞ (docs/RESULTS.md, "A source that stands out").
+/// A source stands out, and stays removed, where its spread's peak, e/Σk
+/// (the luminance of its removed radiance over its window's total
+/// weight), exceeds this many times what it lands on: the geometric mean
+/// of the image's luminance over its window plus the other sources'
+/// peaks weighed by the window ([`spread_into`], docs/filter.md).
+/// Chosen by measurement over 1/10–1 and ∞ (docs/RESULTS.md, "A source
+/// that stands out stays removed").
 pub const STANDOUT: f64 = 0.25;
 
 /// The luminance, relative to the film's mean, below which a pixel
