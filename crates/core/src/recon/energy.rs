@@ -26,9 +26,9 @@
 //! its blur is a feature the reference does not have (a halo where the
 //! spike was a sub-pixel light, a blob where it was a firefly). It stays
 //! removed, as in the filtered image. What it lands on includes the
-//! other sources' spread: a source among many (a caustic's paths, a dim
-//! room's indirect light at few samples) is part of one smooth field,
-//! which the spread restores. Putting a lone one back in its own pixel
+//! other sources' peaks, given back or not: a source among many (a
+//! caustic's paths, a dim room's indirect light at few samples) is part
+//! of one smooth field, which the spread restores. Putting a lone one back in its own pixel
 //! instead brings back the fireflies (docs/RESULTS.md).
 
 use super::Image;
@@ -121,9 +121,9 @@ pub fn spread_into(out: &mut Image, removed: &Image, occupancy: &[u32], sigma: f
         peaks[src] = (lab::luminance(removed.data[src]).max(0.0) / total) as f32;
     }
     // The sources given back: those whose peak does not stand out of the
-    // level plus what the other sources' spreads add at its pixel (a
-    // source among many is part of one smooth field: a caustic, a room's
-    // indirect light).
+    // level plus the other sources' peaks weighed by its window, given
+    // back or not (a source among many is part of one smooth field: a
+    // caustic, a room's indirect light).
     let sources: Vec<(usize, f64)> = all
         .par_iter()
         .filter_map(|&(src, total, geo_level)| {
@@ -369,6 +369,10 @@ mod tests {
                     *e = std::array::from_fn(|_| 100.0 * unit() - 10.0);
                 }
             }
+            // A lone spike that stands out on any of these backgrounds.
+            let mut occupancy = occupancy;
+            let centre = h / 2 * w + w / 2;
+            (removed.data[centre], occupancy[centre]) = ([1e5; 3], 1);
             let (want, spread, left) = serial(&filtered, &removed, &occupancy, sigma);
             if w * h > 1 {
                 assert!(
@@ -417,6 +421,42 @@ mod tests {
         };
         assert!((given_back(0..20) - 49.0).abs() < 1e-9);
         assert_eq!(given_back(20..40), 0.0);
+    }
+
+    /// The rule reads luminances relative to the film's, so a dump in
+    /// other units (the same film × 10⁻⁶ or × 10⁶) has the same sources
+    /// given back, black pixels and all.
+    #[test]
+    fn the_rule_does_not_depend_on_units() {
+        let mut unit = crate::synth::test_units(7);
+        let (w, h) = (30, 24);
+        let mut filtered = Image::new(w, h, 1);
+        let mut removed = Image::new(w, h, 1);
+        for (i, (f, e)) in filtered.data.iter_mut().zip(&mut removed.data).enumerate() {
+            if i % 5 != 0 {
+                *f = std::array::from_fn(|_| 0.5 + unit());
+            }
+            if unit() < 0.2 {
+                *e = std::array::from_fn(|_| 400.0 * unit() * unit());
+            }
+        }
+        let occupancy = vec![1; w * h];
+        let (base, spread, left) = serial(&filtered, &removed, &occupancy, 3.0);
+        assert!(spread > 0 && left > 0, "{spread} spread, {left} left");
+        for scale in [1e-6, 1e6] {
+            let times = |i: &Image| {
+                let mut i = i.clone();
+                i.data.iter_mut().flatten().for_each(|v| *v *= scale);
+                i
+            };
+            let out = energy_aware(&times(&filtered), &times(&removed), &occupancy, 3.0);
+            for (a, b) in out.data.iter().flatten().zip(base.data.iter().flatten()) {
+                assert!(
+                    (a / scale - b).abs() <= 1e-9 * b.abs().max(1.0),
+                    "× {scale}"
+                );
+            }
+        }
     }
 
     #[test]
