@@ -17,9 +17,9 @@
 //! all of it. Spreading over 2πσ_e² pixels divides the spike's amplitude by
 //! that area (σ_e = 8: about 400×) while the film's total radiance per
 //! channel, and so the energy ratio, stays that of the mean (less the
-//! sources that stand out, below). Only pixels
-//! holding samples receive energy, and the weights are normalised over those
-//! inside the frame, so nothing leaks off the film.
+//! sources that stand out, below). Only pixels holding samples receive
+//! energy, and the weights are normalised over those inside the frame, so
+//! nothing leaks off the film.
 //!
 //! A source whose spread would still stand out of what it lands on
 //! ([`STANDOUT`]) is not given back: no width of the spread hides it, and
@@ -28,8 +28,9 @@
 //! removed, as in the filtered image. What it lands on includes the
 //! other sources' peaks, given back or not: a source among many (a
 //! caustic's paths, a dim room's indirect light at few samples) is part
-//! of one smooth field, which the spread restores. Putting a lone one back in its own pixel
-//! instead brings back the fireflies (docs/RESULTS.md).
+//! of one smooth field, which the spread restores. Putting a lone one
+//! back in its own pixel instead brings back the fireflies
+//! (docs/RESULTS.md).
 
 use super::Image;
 use crate::joint::lab;
@@ -55,9 +56,9 @@ pub fn removed_by(mean: &Image, filtered: impl Fn(usize) -> [f64; 3]) -> Image {
 /// `filtered` plus `removed` spread over each source pixel's neighbourhood
 /// (radius ⌈3σ_e⌉) with weights exp(−d²/2σ_e²) normalised over the
 /// occupied pixels of its frame, except a source that stands out
-/// ([`STANDOUT`]), which stays removed. Every pixel receives
-/// its shares in the order of the sources' pixels, so the result does not
-/// depend on threads.
+/// ([`STANDOUT`]), which stays removed. Every pixel receives its shares
+/// in the order of the sources' pixels, so the result does not depend on
+/// threads.
 ///
 /// ```
 /// use pathdensity_core::recon::{Image, energy};
