@@ -26,9 +26,10 @@
 //! its blur is a feature the reference does not have (a halo where the
 //! spike was a sub-pixel light, a blob where it was a firefly). It stays
 //! removed, as in the filtered image. What it lands on includes the
-//! other sources' peaks, given back or not: a source among many (a
+//! peaks of the other sources given back: a source among many (a
 //! caustic's paths, a dim room's indirect light at few samples) is part
-//! of one smooth field, which the spread restores. Putting a lone one
+//! of one smooth field, which the spread restores; a source beside a
+//! spike that stays removed is judged without it. Putting a lone one
 //! back in its own pixel instead brings back the fireflies
 //! (docs/RESULTS.md).
 
@@ -121,23 +122,47 @@ pub fn spread_into(out: &mut Image, removed: &Image, occupancy: &[u32], sigma: f
     for &(src, total, _) in &all {
         peaks[src] = (lab::luminance(removed.data[src]).max(0.0) / total) as f32;
     }
-    // The sources given back: those whose peak does not stand out of the
-    // level plus the other sources' peaks weighed by its window, given
-    // back or not (a source among many is part of one smooth field: a
-    // caustic, a room's indirect light).
+    // The sources given back: the largest set none of whose peaks stands
+    // out of its level plus the given-back others' peaks weighed by its
+    // window. A source among many is part of one smooth field (a caustic,
+    // a room's indirect light) and is given back; one that only a source
+    // left removed kept from standing out is not (the rim of a sub-pixel
+    // light). From every source, those that stand out are taken out,
+    // round by round, until none does; after the first round only those
+    // whose window holds a source just taken out can change.
+    let mut given = vec![true; all.len()];
+    let mut taken: Option<Vec<usize>> = None;
+    loop {
+        let now: Vec<usize> = (0..all.len())
+            .into_par_iter()
+            .filter(|&i| given[i])
+            .filter(|&i| taken.as_ref().is_none_or(|t| spread.reaches(t, all[i].0)))
+            .filter(|&i| {
+                let (src, total, geo_level) = all[i];
+                let mut others = 0.0;
+                spread.window(src, 0..spread.rows, |q, k| {
+                    if q != src {
+                        others += k * peaks[q] as f64;
+                    }
+                });
+                let peak = lab::luminance(removed.data[src]) / total;
+                peak > STANDOUT * (geo_level + others)
+            })
+            .collect();
+        if now.is_empty() {
+            break;
+        }
+        for &i in &now {
+            given[i] = false;
+            peaks[all[i].0] = 0.0;
+        }
+        taken = Some(now.iter().map(|&i| all[i].0).collect());
+    }
     let sources: Vec<(usize, f64)> = all
-        .par_iter()
-        .filter_map(|&(src, total, geo_level)| {
-            let mut others = 0.0;
-            spread.window(src, 0..spread.rows, |q, k| {
-                if q != src {
-                    others += k * peaks[q] as f64;
-                }
-            });
-            let peak = lab::luminance(removed.data[src]) / total;
-            let stands_out = peak > STANDOUT * (geo_level + others);
-            (!stands_out).then_some((src, total))
-        })
+        .iter()
+        .zip(&given)
+        .filter(|(_, g)| **g)
+        .map(|(&(src, total, _), _)| (src, total))
         .collect();
     drop((all, peaks));
     let w = spread.w.max(1);
@@ -225,6 +250,19 @@ impl<'a> Spread<'a> {
         }
     }
 
+    /// Whether any pixel of `pixels` (in pixel order) lies in `src`'s
+    /// window, occupied or not.
+    fn reaches(&self, pixels: &[usize], src: usize) -> bool {
+        let (w, r) = (self.w, self.r);
+        let (row, x) = (src / w, src % w);
+        let frame = row / self.h;
+        let from = pixels.partition_point(|&q| q / w + r < row);
+        let to = pixels.partition_point(|&q| q / w <= row + r);
+        pixels[from..to]
+            .iter()
+            .any(|&q| q / w / self.h == frame && (q % w).abs_diff(x) <= r)
+    }
+
     /// `visit(q, weight)` for each occupied pixel q of `src`'s window in
     /// its frame whose row (counted over all frames) is in `rows`, in
     /// pixel order.
@@ -267,7 +305,7 @@ mod tests {
         removed: &Image,
         occupancy: &[u32],
         sigma: f64,
-    ) -> (Image, usize, usize) {
+    ) -> (Image, usize, usize, usize) {
         use crate::joint::lab::luminance;
         let (w, h) = (filtered.width, filtered.height);
         let r = (3.0 * sigma).ceil().max(0.0) as isize;
@@ -320,20 +358,44 @@ mod tests {
             levels[src] = (log_level / total).exp();
             peaks[src] = (luminance(removed.data[src]).max(0.0) / total) as f32;
         }
+        // Rounds: every source still given back is judged against the
+        // others still given back; those that stand out are taken out
+        // together, until a round takes none.
+        let mut given: Vec<bool> = vec![true; sources.len()];
+        let mut rounds = 0;
+        loop {
+            let mut now = Vec::new();
+            for (i, &src) in sources.iter().enumerate() {
+                if !given[i] {
+                    continue;
+                }
+                let mut others = 0.0;
+                window(src, &mut |q, k| {
+                    let j = sources.binary_search(&q);
+                    if q != src && j.is_ok_and(|j| given[j]) {
+                        others += k * peaks[q] as f64;
+                    }
+                });
+                if luminance(removed.data[src]) / totals[src] > STANDOUT * (levels[src] + others) {
+                    now.push(i);
+                }
+            }
+            if now.is_empty() {
+                break;
+            }
+            rounds += 1;
+            for i in now {
+                given[i] = false;
+            }
+        }
         let mut out = filtered.clone();
         let (mut spread, mut left) = (0, 0);
-        for &src in &sources {
-            let (e, total) = (removed.data[src], totals[src]);
-            let mut others = 0.0;
-            window(src, &mut |q, k| {
-                if q != src {
-                    others += k * peaks[q] as f64;
-                }
-            });
-            if luminance(e) / total > STANDOUT * (levels[src] + others) {
+        for (&src, &given) in sources.iter().zip(&given) {
+            if !given {
                 left += 1;
                 continue;
             }
+            let (e, total) = (removed.data[src], totals[src]);
             spread += 1;
             window(src, &mut |q, k| {
                 for (o, v) in out.data[q].iter_mut().zip(e) {
@@ -341,7 +403,7 @@ mod tests {
                 }
             });
         }
-        (out, spread, left)
+        (out, spread, left, rounds)
     }
 
     /// Bands of every height against the serial spread, bit for bit, on
@@ -358,6 +420,7 @@ mod tests {
             (60, 3, 0.4, 40.0),
             (1, 1, 2.0, 1.0),
         ];
+        let mut most_rounds = 0;
         for (w, h, sigma, background) in films {
             let mut removed = Image::new(w, h, 2);
             let mut filtered = Image::new(w, h, 2);
@@ -374,7 +437,8 @@ mod tests {
             let mut occupancy = occupancy;
             let centre = h / 2 * w + w / 2;
             (removed.data[centre], occupancy[centre]) = ([1e5; 3], 1);
-            let (want, spread, left) = serial(&filtered, &removed, &occupancy, sigma);
+            let (want, spread, left, rounds) = serial(&filtered, &removed, &occupancy, sigma);
+            most_rounds = most_rounds.max(rounds);
             if w * h > 1 {
                 assert!(
                     spread > 0 && left > 0,
@@ -391,6 +455,65 @@ mod tests {
                 assert_eq!(bits(&got), bits(&want), "{w} × {h}, σ_e {sigma}");
             }
         }
+        // Some source stood out only once a source beside it was taken out.
+        assert!(most_rounds >= 2, "{most_rounds} rounds");
+    }
+
+    /// Whether a source's window holds one of a list of pixels, against
+    /// every pixel of the window tried: frames, edges, the window's rim.
+    #[test]
+    fn reaches_is_the_window() {
+        let mut unit = crate::synth::test_units(5);
+        for (w, h, sigma) in [(9, 7, 1.0), (4, 11, 0.7), (13, 3, 2.0)] {
+            let img = Image::new(w, h, 2);
+            let occupancy = vec![1; w * h * 2];
+            let spread = Spread::new(&img, sigma, &occupancy);
+            let r = spread.r as isize;
+            for _ in 0..200 {
+                let pixels: Vec<usize> = (0..w * h * 2).filter(|_| unit() < 0.05).collect();
+                for src in 0..w * h * 2 {
+                    let (f, x, y) = (src / (w * h), src % w, src % (w * h) / w);
+                    let near = pixels.iter().any(|&q| {
+                        let (qf, qx, qy) = (q / (w * h), q % w, q % (w * h) / w);
+                        let d = |a: usize, b: usize| (a as isize - b as isize).abs();
+                        qf == f && d(qx, x) <= r && d(qy, y) <= r
+                    });
+                    assert_eq!(spread.reaches(&pixels, src), near, "{w} × {h}, {src}");
+                }
+            }
+        }
+    }
+
+    /// The rim of a sub-pixel light: a source beside a spike that stays
+    /// removed does not stand out of the spike's peak, and would be given
+    /// back as a halo; judged without the spike, it stands out and stays
+    /// removed too. Beside a spike that is given back (a field of them),
+    /// it is given back.
+    #[test]
+    fn a_source_beside_a_removed_spike_is_judged_without_it() {
+        let (w, h, sigma) = (21, 21, 2.0);
+        let mut filtered = Image::new(w, h, 1);
+        filtered.data.fill([0.03; 3]);
+        let occupancy = vec![1; w * h];
+        let centre = 10 * w + 10;
+        let mut removed = Image::new(w, h, 1);
+        removed.data[centre] = [350.0; 3];
+        removed.data[centre - 1] = [50.0; 3];
+        let (want, spread, left, rounds) = serial(&filtered, &removed, &occupancy, sigma);
+        assert_eq!((spread, left, rounds), (0, 2, 2));
+        let out = energy_aware(&filtered, &removed, &occupancy, sigma);
+        assert_eq!(out.data, want.data);
+        assert_eq!(out.data, filtered.data);
+        // The same pair inside a 5 × 5 field of equal spikes: all given back.
+        for y in 8..13 {
+            for x in 8..13 {
+                if y * w + x != centre - 1 {
+                    removed.data[y * w + x] = [350.0; 3];
+                }
+            }
+        }
+        let (_, spread, left, _) = serial(&filtered, &removed, &occupancy, sigma);
+        assert_eq!((spread, left), (25, 0));
     }
 
     /// A source among many is part of one smooth field and is spread; the
@@ -411,7 +534,7 @@ mod tests {
         removed.data[10 * w + 32] = [1.0; 3];
         let occupancy = vec![1; w * h];
         let out = energy_aware(&filtered, &removed, &occupancy, sigma);
-        let (want, spread, left) = serial(&filtered, &removed, &occupancy, sigma);
+        let (want, spread, left, _) = serial(&filtered, &removed, &occupancy, sigma);
         assert_eq!((spread, left), (49, 1));
         assert_eq!(out.data, want.data);
         let given_back = |xs: std::ops::Range<usize>| -> f64 {
@@ -442,7 +565,7 @@ mod tests {
             }
         }
         let occupancy = vec![1; w * h];
-        let (base, spread, left) = serial(&filtered, &removed, &occupancy, 3.0);
+        let (base, spread, left, _) = serial(&filtered, &removed, &occupancy, 3.0);
         assert!(spread > 0 && left > 0, "{spread} spread, {left} left");
         for scale in [1e-6, 1e6] {
             let times = |i: &Image| {
