@@ -191,8 +191,9 @@ pub fn spread_into(out: &mut Image, removed: &Image, occupancy: &[u32], sigma: f
 /// A source stands out, and stays removed, where its spread's peak, e/Σk
 /// (the luminance of its removed radiance over its window's total
 /// weight), exceeds this many times what it lands on: the geometric mean
-/// of the image's luminance over its window plus the other sources'
-/// peaks weighed by the window ([`spread_into`], docs/filter.md).
+/// of the image's luminance over its window plus the peaks of the other
+/// sources given back, weighed by the window ([`spread_into`],
+/// docs/filter.md).
 /// Chosen by measurement over 1/10–1 and ∞ (docs/RESULTS.md, "A source
 /// that stands out stays removed").
 pub const STANDOUT: f64 = 0.25;
