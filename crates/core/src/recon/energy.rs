@@ -84,25 +84,31 @@ pub fn removed_by(mean: &Image, filtered: impl Fn(usize) -> [f64; 3]) -> Image {
 /// ```
 pub fn energy_aware(filtered: &Image, removed: &Image, occupancy: &[u32], sigma: f64) -> Image {
     let mut out = filtered.clone();
-    spread_into(&mut out, removed, occupancy, sigma);
+    spread_into(&mut out, removed, occupancy, sigma, Some(RANGE));
     out
 }
 
 /// [`energy_aware`] in place: `removed` spread into `out`, the filtered
 /// image (or a denoised one: what the energy lands on).
-pub fn spread_into(out: &mut Image, removed: &Image, occupancy: &[u32], sigma: f64) {
+pub fn spread_into(
+    out: &mut Image,
+    removed: &Image,
+    occupancy: &[u32],
+    sigma: f64,
+    range: Option<f64>,
+) {
     let spread = Spread::new(out, sigma, occupancy);
     // What a source lands on: the log luminance its window averages,
-    // floored relative to the film's mean, so that a black window has a
-    // finite level and the rule does not depend on the dump's units.
-    let floor = LEVEL_FLOOR * mean_luminance(out, occupancy);
+    // relative to the film's mean and floored there, so that a black
+    // window has a finite level and nothing depends on the dump's units.
+    let film = mean_luminance(out, occupancy);
     let level: Vec<f32> = out
         .data
         .par_iter()
-        .map(|p| lab::luminance(*p).max(floor).ln() as f32)
+        .map(|p| (lab::luminance(*p) / film).max(LEVEL_FLOOR).ln() as f32)
         .collect();
-    // Every source with its window's total weight and its level's
-    // geometric mean, in pixel order.
+    // Every source with its window's total weight and the mean of its
+    // window's log levels, in pixel order.
     let all: Vec<(usize, f64, f64)> = (0..removed.data.len())
         .into_par_iter()
         .filter(|&src| removed.data[src] != [0.0; 3] && occupancy[src] > 0)
@@ -112,10 +118,9 @@ pub fn spread_into(out: &mut Image, removed: &Image, occupancy: &[u32], sigma: f
                 total += k;
                 log_level += k * level[q] as f64;
             });
-            (src, total, (log_level / total).exp())
+            (src, total, log_level / total)
         })
         .collect();
-    drop(level);
     // Each source's peak, e/Σk of its luminance (0 for a dark one): what
     // its spread adds at its own pixel.
     let mut peaks = vec![0f32; removed.data.len()];
@@ -138,7 +143,8 @@ pub fn spread_into(out: &mut Image, removed: &Image, occupancy: &[u32], sigma: f
             .filter(|&i| given[i])
             .filter(|&i| taken.as_ref().is_none_or(|t| spread.reaches(t, all[i].0)))
             .filter(|&i| {
-                let (src, total, geo_level) = all[i];
+                let (src, total, log_level) = all[i];
+                let geo_level = film * log_level.exp();
                 let mut others = 0.0;
                 spread.window(src, 0..spread.rows, |q, k| {
                     if q != src {
@@ -158,11 +164,27 @@ pub fn spread_into(out: &mut Image, removed: &Image, occupancy: &[u32], sigma: f
         }
         taken = Some(now.iter().map(|&i| all[i].0).collect());
     }
-    let sources: Vec<(usize, f64)> = all
-        .iter()
-        .zip(&given)
+    // With a `range`, each source given back lands on the pixels of its
+    // window whose level is near its own pixel's ([`RANGE`]): a glossy
+    // streak's rare paths go back along the streak, not as a haze over
+    // the dark floor beside it.
+    let range = |own: f64, q: usize| match range {
+        Some(width) => {
+            let d = level[q] as f64 - own;
+            (-d * d / (2.0 * width * width)).exp()
+        }
+        None => 1.0,
+    };
+    let sources: Vec<(usize, f64, f64)> = all
+        .par_iter()
+        .zip(given.par_iter())
         .filter(|(_, g)| **g)
-        .map(|(&(src, total, _), _)| (src, total))
+        .map(|(&(src, ..), _)| {
+            let own = level[src] as f64;
+            let mut total = 0.0;
+            spread.window(src, 0..spread.rows, |q, k| total += k * range(own, q));
+            (src, total, own)
+        })
         .collect();
     drop((all, peaks));
     let w = spread.w.max(1);
@@ -175,11 +197,12 @@ pub fn spread_into(out: &mut Image, removed: &Image, occupancy: &[u32], sigma: f
             let first = band * BAND_ROWS;
             let rows = first..first + pixels.len() / w;
             // Sources more than r rows away reach no row of the band.
-            let from = sources.partition_point(|&(s, _)| s / w + spread.r < rows.start);
-            let to = sources.partition_point(|&(s, _)| s / w < rows.end + spread.r);
-            for &(src, total) in &sources[from..to] {
+            let from = sources.partition_point(|&(s, ..)| s / w + spread.r < rows.start);
+            let to = sources.partition_point(|&(s, ..)| s / w < rows.end + spread.r);
+            for &(src, total, own) in &sources[from..to] {
                 let e = removed.data[src];
                 spread.window(src, rows.clone(), |q, k| {
+                    let k = k * range(own, q);
                     for (o, v) in pixels[q - first * w].iter_mut().zip(e) {
                         *o += v * k / total;
                     }
@@ -197,6 +220,13 @@ pub fn spread_into(out: &mut Image, removed: &Image, occupancy: &[u32], sigma: f
 /// Chosen by measurement over 1/10–1 and ∞ (docs/RESULTS.md, "A source
 /// that stands out stays removed").
 pub const STANDOUT: f64 = 0.25;
+
+/// The width, in natural-log units of luminance, of the weight a given-back
+/// source's spread puts on a pixel of its window by how far that pixel's
+/// level lies from the source's own: exp(−(ln Y_q − ln Y_s)² / 2·RANGE²).
+/// Chosen by measurement over 0.25–1 and ∞ (docs/RESULTS.md, "A source
+/// that stands out stays removed").
+pub const RANGE: f64 = 0.25;
 
 /// The luminance, relative to the film's mean, below which a pixel
 /// counts as this dark in that geometric mean.
@@ -306,6 +336,7 @@ mod tests {
         removed: &Image,
         occupancy: &[u32],
         sigma: f64,
+        range: Option<f64>,
     ) -> (Image, usize, usize, usize) {
         use crate::joint::lab::luminance;
         let (w, h) = (filtered.width, filtered.height);
@@ -342,7 +373,8 @@ mod tests {
             }
         }
         let mean = sum / count.max(1) as f64;
-        let floor = 1e-4 * if mean > 0.0 { mean } else { f64::MIN_POSITIVE };
+        let film = if mean > 0.0 { mean } else { f64::MIN_POSITIVE };
+        let ln = |q: usize| (luminance(filtered.data[q]) / film).max(1e-4).ln() as f32;
         let sources: Vec<usize> = (0..removed.data.len())
             .filter(|&s| removed.data[s] != [0.0; 3] && occupancy[s] > 0)
             .collect();
@@ -353,10 +385,10 @@ mod tests {
             let (mut total, mut log_level) = (0.0, 0.0);
             window(src, &mut |q, k| {
                 total += k;
-                log_level += k * luminance(filtered.data[q]).max(floor).ln() as f32 as f64;
+                log_level += k * ln(q) as f64;
             });
             totals[src] = total;
-            levels[src] = (log_level / total).exp();
+            levels[src] = film * (log_level / total).exp();
             peaks[src] = (luminance(removed.data[src]).max(0.0) / total) as f32;
         }
         // Rounds: every source still given back is judged against the
@@ -396,9 +428,21 @@ mod tests {
                 left += 1;
                 continue;
             }
-            let (e, total) = (removed.data[src], totals[src]);
+            // Given back to the window's pixels near its own pixel's level.
+            let own = ln(src) as f64;
+            let near = |q: usize| match range {
+                Some(width) => {
+                    let d = ln(q) as f64 - own;
+                    (-d * d / (2.0 * width * width)).exp()
+                }
+                None => 1.0,
+            };
+            let mut total = 0.0;
+            window(src, &mut |q, k| total += k * near(q));
+            let e = removed.data[src];
             spread += 1;
             window(src, &mut |q, k| {
+                let k = k * near(q);
                 for (o, v) in out.data[q].iter_mut().zip(e) {
                     *o += v * k / total;
                 }
@@ -438,22 +482,28 @@ mod tests {
             let mut occupancy = occupancy;
             let centre = h / 2 * w + w / 2;
             (removed.data[centre], occupancy[centre]) = ([1e5; 3], 1);
-            let (want, spread, left, rounds) = serial(&filtered, &removed, &occupancy, sigma);
-            most_rounds = most_rounds.max(rounds);
-            if w * h > 1 {
-                assert!(
-                    spread > 0 && left > 0,
-                    "{w} × {h}: {spread} spread, {left} left"
-                );
-            }
-            for threads in [1, 3] {
-                let got = crate::par::pool(threads)
-                    .unwrap()
-                    .install(|| energy_aware(&filtered, &removed, &occupancy, sigma));
-                let bits = |i: &Image| -> Vec<u64> {
-                    i.data.iter().flatten().map(|v| v.to_bits()).collect()
-                };
-                assert_eq!(bits(&got), bits(&want), "{w} × {h}, σ_e {sigma}");
+            // Isotropic (`guided`'s) and by level (`filtered_energy`'s).
+            for range in [None, Some(RANGE)] {
+                let (want, spread, left, rounds) =
+                    serial(&filtered, &removed, &occupancy, sigma, range);
+                most_rounds = most_rounds.max(rounds);
+                if w * h > 1 {
+                    assert!(
+                        spread > 0 && left > 0,
+                        "{w} × {h}: {spread} spread, {left} left"
+                    );
+                }
+                for threads in [1, 3] {
+                    let got = crate::par::pool(threads).unwrap().install(|| {
+                        let mut out = filtered.clone();
+                        spread_into(&mut out, &removed, &occupancy, sigma, range);
+                        out
+                    });
+                    let bits = |i: &Image| -> Vec<u64> {
+                        i.data.iter().flatten().map(|v| v.to_bits()).collect()
+                    };
+                    assert_eq!(bits(&got), bits(&want), "{w} × {h}, σ_e {sigma}, {range:?}");
+                }
             }
         }
         // Some source stood out only once a source beside it was taken out.
@@ -500,7 +550,8 @@ mod tests {
         let mut removed = Image::new(w, h, 1);
         removed.data[centre] = [350.0; 3];
         removed.data[centre - 1] = [50.0; 3];
-        let (want, spread, left, rounds) = serial(&filtered, &removed, &occupancy, sigma);
+        let (want, spread, left, rounds) =
+            serial(&filtered, &removed, &occupancy, sigma, Some(RANGE));
         assert_eq!((spread, left, rounds), (0, 2, 2));
         let out = energy_aware(&filtered, &removed, &occupancy, sigma);
         assert_eq!(out.data, want.data);
@@ -513,7 +564,7 @@ mod tests {
                 }
             }
         }
-        let (_, spread, left, _) = serial(&filtered, &removed, &occupancy, sigma);
+        let (_, spread, left, _) = serial(&filtered, &removed, &occupancy, sigma, Some(RANGE));
         assert_eq!((spread, left), (25, 0));
     }
 
@@ -535,7 +586,7 @@ mod tests {
         removed.data[10 * w + 32] = [1.0; 3];
         let occupancy = vec![1; w * h];
         let out = energy_aware(&filtered, &removed, &occupancy, sigma);
-        let (want, spread, left, _) = serial(&filtered, &removed, &occupancy, sigma);
+        let (want, spread, left, _) = serial(&filtered, &removed, &occupancy, sigma, Some(RANGE));
         assert_eq!((spread, left), (49, 1));
         assert_eq!(out.data, want.data);
         let given_back = |xs: std::ops::Range<usize>| -> f64 {
@@ -546,6 +597,32 @@ mod tests {
         };
         assert!((given_back(0..20) - 49.0).abs() < 1e-9);
         assert_eq!(given_back(20..40), 0.0);
+    }
+
+    /// A streak's removed energy goes back along the streak: sources on a
+    /// bright column of a dark film (a glossy reflection's rejected rare
+    /// paths) are given back to the column, not spread as a haze over
+    /// the film beside it.
+    #[test]
+    fn a_streak_is_given_back_along_itself() {
+        let (w, h, sigma) = (31, 31, 3.0);
+        let mut filtered = Image::new(w, h, 1);
+        filtered.data.fill([0.05; 3]);
+        let mut removed = Image::new(w, h, 1);
+        for y in 0..h {
+            filtered.data[y * w + 15] = [1.0; 3];
+            removed.data[y * w + 15] = [0.5; 3];
+        }
+        let occupancy = vec![1; w * h];
+        let out = energy_aware(&filtered, &removed, &occupancy, sigma);
+        let (want, spread, left, _) = serial(&filtered, &removed, &occupancy, sigma, Some(RANGE));
+        assert_eq!((spread, left), (31, 0));
+        assert_eq!(out.data, want.data);
+        let added = |p: usize| out.data[p][0] - filtered.data[p][0];
+        let streak: f64 = (0..h).map(|y| added(y * w + 15)).sum();
+        let all: f64 = (0..w * h).map(added).sum();
+        assert!((all - 15.5).abs() < 1e-9, "{all}");
+        assert!(streak > 0.99 * all, "{streak} of {all} on the streak");
     }
 
     /// The rule reads luminances relative to the film's, so a dump in
@@ -566,7 +643,7 @@ mod tests {
             }
         }
         let occupancy = vec![1; w * h];
-        let (base, spread, left, _) = serial(&filtered, &removed, &occupancy, 3.0);
+        let (base, spread, left, _) = serial(&filtered, &removed, &occupancy, 3.0, Some(RANGE));
         assert!(spread > 0 && left > 0, "{spread} spread, {left} left");
         for scale in [1e-6, 1e6] {
             let times = |i: &Image| {

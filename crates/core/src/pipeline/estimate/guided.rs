@@ -165,8 +165,9 @@ impl Estimators<'_, '_> {
         accepted: &Interval,
         all: &Interval,
     ) -> Image {
-        let with_energy =
-            energy::energy_aware(denoised, removed, occupancy, self.config.energy_sigma);
+        let mut with_energy = denoised.clone();
+        let sigma = self.config.energy_sigma;
+        energy::spread_into(&mut with_energy, removed, occupancy, sigma, None);
         self.guided_statmc_of(with_energy, accepted, all)
     }
 
@@ -208,6 +209,7 @@ impl Estimators<'_, '_> {
             &removed,
             &all.count,
             self.config.energy_sigma,
+            None,
         );
         drop(removed);
         let g = self.guided_statmc_of(with_energy, &accepted, &all);
