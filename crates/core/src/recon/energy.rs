@@ -84,19 +84,13 @@ pub fn removed_by(mean: &Image, filtered: impl Fn(usize) -> [f64; 3]) -> Image {
 /// ```
 pub fn energy_aware(filtered: &Image, removed: &Image, occupancy: &[u32], sigma: f64) -> Image {
     let mut out = filtered.clone();
-    spread_into(&mut out, removed, occupancy, sigma, Some(RANGE));
+    spread_into(&mut out, removed, occupancy, sigma);
     out
 }
 
 /// [`energy_aware`] in place: `removed` spread into `out`, the filtered
 /// image (or a denoised one: what the energy lands on).
-pub fn spread_into(
-    out: &mut Image,
-    removed: &Image,
-    occupancy: &[u32],
-    sigma: f64,
-    range: Option<f64>,
-) {
+pub fn spread_into(out: &mut Image, removed: &Image, occupancy: &[u32], sigma: f64) {
     let spread = Spread::new(out, sigma, occupancy);
     // What a source lands on: the log luminance its window averages,
     // relative to the film's mean and floored there, so that a black
@@ -164,23 +158,24 @@ pub fn spread_into(
         }
         taken = Some(now.iter().map(|&i| all[i].0).collect());
     }
-    // With a `range`, each source given back lands on the pixels of its
-    // window whose level is near its own pixel's ([`RANGE`]): a glossy
-    // streak's rare paths go back along the streak, not as a haze over
-    // the dark floor beside it.
-    let range = |own: f64, q: usize| match range {
-        Some(width) => {
-            let d = level[q] as f64 - own;
-            (-d * d / (2.0 * width * width)).exp()
-        }
-        None => 1.0,
+    // Each source given back lands on the pixels of its window whose
+    // level is near its own ([`RANGE`]): a glossy streak's rare paths go
+    // back along the streak, not as a haze over the dark floor beside it.
+    // A pixel's level here is the brightest of its 3 × 3 neighbourhood,
+    // so that a pixel left dark among bright ones (all its samples
+    // rejected, at few samples) still receives, and a source in one is
+    // not gathered back into the dark pixels.
+    let near = brightest_around(&level, spread.w, spread.h);
+    let range = |own: f32, q: usize| {
+        let d = (near[q] - own) as f64;
+        (-d * d / (2.0 * RANGE * RANGE)).exp()
     };
-    let sources: Vec<(usize, f64, f64)> = all
+    let sources: Vec<(usize, f64, f32)> = all
         .par_iter()
         .zip(given.par_iter())
         .filter(|(_, g)| **g)
         .map(|(&(src, ..), _)| {
-            let own = level[src] as f64;
+            let own = near[src];
             let mut total = 0.0;
             spread.window(src, 0..spread.rows, |q, k| total += k * range(own, q));
             (src, total, own)
@@ -316,6 +311,24 @@ impl<'a> Spread<'a> {
     }
 }
 
+/// Per pixel the largest of `v` over its 3 × 3 neighbourhood within its
+/// frame (`w` × `h` a frame).
+fn brightest_around(v: &[f32], w: usize, h: usize) -> Vec<f32> {
+    (0..v.len())
+        .into_par_iter()
+        .map(|px| {
+            let (frame, x, y) = (px / (w * h) * w * h, px % w, px % (w * h) / w);
+            let mut m = f32::NEG_INFINITY;
+            for qy in y.saturating_sub(1)..(y + 2).min(h) {
+                for qx in x.saturating_sub(1)..(x + 2).min(w) {
+                    m = m.max(v[frame + qy * w + qx]);
+                }
+            }
+            m
+        })
+        .collect()
+}
+
 /// Σ over the film of each channel of `img`.
 pub fn channel_sums(img: &Image) -> [f64; 3] {
     img.data
@@ -336,7 +349,6 @@ mod tests {
         removed: &Image,
         occupancy: &[u32],
         sigma: f64,
-        range: Option<f64>,
     ) -> (Image, usize, usize, usize) {
         use crate::joint::lab::luminance;
         let (w, h) = (filtered.width, filtered.height);
@@ -428,14 +440,22 @@ mod tests {
                 left += 1;
                 continue;
             }
-            // Given back to the window's pixels near its own pixel's level.
-            let own = ln(src) as f64;
-            let near = |q: usize| match range {
-                Some(width) => {
-                    let d = ln(q) as f64 - own;
-                    (-d * d / (2.0 * width * width)).exp()
+            // Given back to the window's pixels near its level, each
+            // pixel's the brightest of its 3 × 3 neighbourhood.
+            let brightest = |q: usize| {
+                let (frame, x, y) = (q / n * n, (q % n) % w, (q % n) / w);
+                let mut m = f32::NEG_INFINITY;
+                for qy in y.saturating_sub(1)..=(y + 1).min(h - 1) {
+                    for qx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
+                        m = m.max(ln(frame + qy * w + qx));
+                    }
                 }
-                None => 1.0,
+                m
+            };
+            let own = brightest(src);
+            let near = |q: usize| {
+                let d = (brightest(q) - own) as f64;
+                (-d * d / (2.0 * RANGE * RANGE)).exp()
             };
             let mut total = 0.0;
             window(src, &mut |q, k| total += k * near(q));
@@ -482,28 +502,22 @@ mod tests {
             let mut occupancy = occupancy;
             let centre = h / 2 * w + w / 2;
             (removed.data[centre], occupancy[centre]) = ([1e5; 3], 1);
-            // Isotropic (`guided`'s) and by level (`filtered_energy`'s).
-            for range in [None, Some(RANGE)] {
-                let (want, spread, left, rounds) =
-                    serial(&filtered, &removed, &occupancy, sigma, range);
-                most_rounds = most_rounds.max(rounds);
-                if w * h > 1 {
-                    assert!(
-                        spread > 0 && left > 0,
-                        "{w} × {h}: {spread} spread, {left} left"
-                    );
-                }
-                for threads in [1, 3] {
-                    let got = crate::par::pool(threads).unwrap().install(|| {
-                        let mut out = filtered.clone();
-                        spread_into(&mut out, &removed, &occupancy, sigma, range);
-                        out
-                    });
-                    let bits = |i: &Image| -> Vec<u64> {
-                        i.data.iter().flatten().map(|v| v.to_bits()).collect()
-                    };
-                    assert_eq!(bits(&got), bits(&want), "{w} × {h}, σ_e {sigma}, {range:?}");
-                }
+            let (want, spread, left, rounds) = serial(&filtered, &removed, &occupancy, sigma);
+            most_rounds = most_rounds.max(rounds);
+            if w * h > 1 {
+                assert!(
+                    spread > 0 && left > 0,
+                    "{w} × {h}: {spread} spread, {left} left"
+                );
+            }
+            for threads in [1, 3] {
+                let got = crate::par::pool(threads)
+                    .unwrap()
+                    .install(|| energy_aware(&filtered, &removed, &occupancy, sigma));
+                let bits = |i: &Image| -> Vec<u64> {
+                    i.data.iter().flatten().map(|v| v.to_bits()).collect()
+                };
+                assert_eq!(bits(&got), bits(&want), "{w} × {h}, σ_e {sigma}");
             }
         }
         // Some source stood out only once a source beside it was taken out.
@@ -550,8 +564,7 @@ mod tests {
         let mut removed = Image::new(w, h, 1);
         removed.data[centre] = [350.0; 3];
         removed.data[centre - 1] = [50.0; 3];
-        let (want, spread, left, rounds) =
-            serial(&filtered, &removed, &occupancy, sigma, Some(RANGE));
+        let (want, spread, left, rounds) = serial(&filtered, &removed, &occupancy, sigma);
         assert_eq!((spread, left, rounds), (0, 2, 2));
         let out = energy_aware(&filtered, &removed, &occupancy, sigma);
         assert_eq!(out.data, want.data);
@@ -564,7 +577,7 @@ mod tests {
                 }
             }
         }
-        let (_, spread, left, _) = serial(&filtered, &removed, &occupancy, sigma, Some(RANGE));
+        let (_, spread, left, _) = serial(&filtered, &removed, &occupancy, sigma);
         assert_eq!((spread, left), (25, 0));
     }
 
@@ -586,7 +599,7 @@ mod tests {
         removed.data[10 * w + 32] = [1.0; 3];
         let occupancy = vec![1; w * h];
         let out = energy_aware(&filtered, &removed, &occupancy, sigma);
-        let (want, spread, left, _) = serial(&filtered, &removed, &occupancy, sigma, Some(RANGE));
+        let (want, spread, left, _) = serial(&filtered, &removed, &occupancy, sigma);
         assert_eq!((spread, left), (49, 1));
         assert_eq!(out.data, want.data);
         let given_back = |xs: std::ops::Range<usize>| -> f64 {
@@ -601,8 +614,8 @@ mod tests {
 
     /// A streak's removed energy goes back along the streak: sources on a
     /// bright column of a dark film (a glossy reflection's rejected rare
-    /// paths) are given back to the column, not spread as a haze over
-    /// the film beside it.
+    /// paths) are given back to the column and the columns beside it, not
+    /// spread as a haze over the film.
     #[test]
     fn a_streak_is_given_back_along_itself() {
         let (w, h, sigma) = (31, 31, 3.0);
@@ -615,14 +628,43 @@ mod tests {
         }
         let occupancy = vec![1; w * h];
         let out = energy_aware(&filtered, &removed, &occupancy, sigma);
-        let (want, spread, left, _) = serial(&filtered, &removed, &occupancy, sigma, Some(RANGE));
+        let (want, spread, left, _) = serial(&filtered, &removed, &occupancy, sigma);
         assert_eq!((spread, left), (31, 0));
         assert_eq!(out.data, want.data);
         let added = |p: usize| out.data[p][0] - filtered.data[p][0];
-        let streak: f64 = (0..h).map(|y| added(y * w + 15)).sum();
+        // The streak and the columns beside it, whose 3 × 3 neighbourhoods
+        // hold it.
+        let streak: f64 = (0..h)
+            .flat_map(|y| (14..17).map(move |x| added(y * w + x)))
+            .sum();
         let all: f64 = (0..w * h).map(added).sum();
         assert!((all - 15.5).abs() < 1e-9, "{all}");
         assert!(streak > 0.99 * all, "{streak} of {all} on the streak");
+    }
+
+    /// A pixel left dark among bright ones (all its samples rejected)
+    /// receives as its neighbours do: the level a share is weighed by is
+    /// the brightest of a pixel's 3 × 3 neighbourhood.
+    #[test]
+    fn a_dark_pixel_among_bright_ones_still_receives() {
+        let (w, h, sigma) = (21, 21, 2.0);
+        let mut filtered = Image::new(w, h, 1);
+        filtered.data.fill([1.0; 3]);
+        let hole = 10 * w + 10;
+        filtered.data[hole] = [0.0; 3];
+        let mut removed = Image::new(w, h, 1);
+        for y in 6..15 {
+            for x in 6..15 {
+                removed.data[y * w + x] = [0.2; 3];
+            }
+        }
+        let occupancy = vec![1; w * h];
+        let out = energy_aware(&filtered, &removed, &occupancy, sigma);
+        let (want, spread, left, _) = serial(&filtered, &removed, &occupancy, sigma);
+        assert_eq!((spread, left), (81, 0));
+        assert_eq!(out.data, want.data);
+        let added = |p: usize| out.data[p][0] - filtered.data[p][0];
+        assert!((added(hole) - added(hole + 1)).abs() < 0.05 * added(hole + 1));
     }
 
     /// The rule reads luminances relative to the film's, so a dump in
@@ -643,7 +685,7 @@ mod tests {
             }
         }
         let occupancy = vec![1; w * h];
-        let (base, spread, left, _) = serial(&filtered, &removed, &occupancy, 3.0, Some(RANGE));
+        let (base, spread, left, _) = serial(&filtered, &removed, &occupancy, 3.0);
         assert!(spread > 0 && left > 0, "{spread} spread, {left} left");
         for scale in [1e-6, 1e6] {
             let times = |i: &Image| {

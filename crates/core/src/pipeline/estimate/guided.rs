@@ -165,9 +165,8 @@ impl Estimators<'_, '_> {
         accepted: &Interval,
         all: &Interval,
     ) -> Image {
-        let mut with_energy = denoised.clone();
-        let sigma = self.config.energy_sigma;
-        energy::spread_into(&mut with_energy, removed, occupancy, sigma, None);
+        let with_energy =
+            energy::energy_aware(denoised, removed, occupancy, self.config.energy_sigma);
         self.guided_statmc_of(with_energy, accepted, all)
     }
 
@@ -209,7 +208,6 @@ impl Estimators<'_, '_> {
             &removed,
             &all.count,
             self.config.energy_sigma,
-            None,
         );
         drop(removed);
         let g = self.guided_statmc_of(with_energy, &accepted, &all);
