@@ -19,7 +19,10 @@
 //! channel, and so the energy ratio, stays that of the mean (less the
 //! sources that stand out, below). Only pixels holding samples receive
 //! energy, and the weights are normalised over those inside the frame, so
-//! nothing leaks off the film.
+//! nothing leaks off the film. The Gaussian is weighed by how near each
+//! pixel's level lies to the source's ([`RANGE`]): rare paths are given
+//! back where the image already holds their kind of light (a glossy
+//! streak, a caustic), not as a haze over the dark pixels beside it.
 //!
 //! A source whose spread would still stand out of what it lands on
 //! ([`STANDOUT`]) is not given back: no width of the spread hides it, and
@@ -55,8 +58,9 @@ pub fn removed_by(mean: &Image, filtered: impl Fn(usize) -> [f64; 3]) -> Image {
 }
 
 /// `filtered` plus `removed` spread over each source pixel's neighbourhood
-/// (radius ⌈3σ_e⌉) with weights exp(−d²/2σ_e²) normalised over the
-/// occupied pixels of its frame, except a source that stands out
+/// (radius ⌈3σ_e⌉) with weights exp(−d²/2σ_e²), times the level's weight
+/// ([`RANGE`]), normalised over the occupied pixels of its frame, except
+/// a source that stands out
 /// ([`STANDOUT`]), which stays removed. Every pixel receives its shares
 /// in the order of the sources' pixels, so the result does not depend on
 /// threads.
@@ -218,9 +222,10 @@ pub const STANDOUT: f64 = 0.25;
 
 /// The width, in natural-log units of luminance, of the weight a given-back
 /// source's spread puts on a pixel of its window by how far that pixel's
-/// level lies from the source's own: exp(−(ln Y_q − ln Y_s)² / 2·RANGE²).
-/// Chosen by measurement over 0.25–1 and ∞ (docs/RESULTS.md, "A source
-/// that stands out stays removed").
+/// level ℓ (the largest log luminance of its 3 × 3 neighbourhood) lies
+/// from the source's own: exp(−(ℓ_q − ℓ_s)² / 2·RANGE²). Chosen by
+/// measurement over 0.125–1 and ∞ (docs/RESULTS.md, "Given back by
+/// level").
 pub const RANGE: f64 = 0.25;
 
 /// The luminance, relative to the film's mean, below which a pixel
