@@ -103,7 +103,7 @@ pub fn spread_into(out: &mut Image, removed: &Image, occupancy: &[u32], sigma: f
     let level: Vec<f32> = out
         .data
         .par_iter()
-        .map(|p| (lab::luminance(*p) / film).max(LEVEL_FLOOR).ln() as f32)
+        .map(|p| (lab::luminance(*p).max(LEVEL_FLOOR * film).ln() - film.ln()) as f32)
         .collect();
     // Every source with its window's total weight and the mean of its
     // window's log levels, in pixel order.
@@ -391,7 +391,7 @@ mod tests {
         }
         let mean = sum / count.max(1) as f64;
         let film = if mean > 0.0 { mean } else { f64::MIN_POSITIVE };
-        let ln = |q: usize| (luminance(filtered.data[q]) / film).max(1e-4).ln() as f32;
+        let ln = |q: usize| (luminance(filtered.data[q]).max(1e-4 * film).ln() - film.ln()) as f32;
         let sources: Vec<usize> = (0..removed.data.len())
             .filter(|&s| removed.data[s] != [0.0; 3] && occupancy[s] > 0)
             .collect();
@@ -670,6 +670,26 @@ mod tests {
         assert_eq!(out.data, want.data);
         let added = |p: usize| out.data[p][0] - filtered.data[p][0];
         assert!((added(hole) - added(hole + 1)).abs() < 0.05 * added(hole + 1));
+    }
+
+    /// A film whose mean luminance is not positive, with pixels near the
+    /// largest f32 of either sign, gives finite levels and a finite
+    /// image.
+    #[test]
+    fn absurd_films_stay_finite() {
+        let (w, h) = (9, 7);
+        let mut filtered = Image::new(w, h, 1);
+        let mut removed = Image::new(w, h, 1);
+        for (i, (f, e)) in filtered.data.iter_mut().zip(&mut removed.data).enumerate() {
+            let v = [3.4e38, -3.4e38, 1e-40, 0.5, -3.4e38][i % 5];
+            *f = [v, 0.5 * v, -v];
+            *e = [-v, v, 0.25 * v];
+        }
+        let occupancy = vec![1; w * h];
+        let out = energy_aware(&filtered, &removed, &occupancy, 2.0);
+        assert!(out.data.iter().flatten().all(|v| v.is_finite()));
+        let (want, ..) = serial(&filtered, &removed, &occupancy, 2.0);
+        assert_eq!(out.data, want.data);
     }
 
     /// The rule reads luminances relative to the film's, so a dump in
