@@ -15,7 +15,7 @@
 //! (a caustic seen through a diffuse bounce) whose expected contribution is
 //! smooth over many pixels; the filter's fault is only that one pixel got
 //! all of it. Spreading over 2πσ_e² pixels divides the spike's amplitude by
-//! that area (σ_e = 8: about 400×) while the film's total radiance per
+//! that area (σ_e = 8: about 400× on an even image) while the film's total radiance per
 //! channel, and so the energy ratio, stays that of the mean (less the
 //! sources that stand out, below). Only pixels holding samples receive
 //! energy, and the weights are normalised over those inside the frame, so
@@ -329,7 +329,8 @@ impl<'a> Spread<'a> {
 }
 
 /// Per pixel the largest of `v` over its 3 × 3 neighbourhood within its
-/// frame (`w` × `h` a frame).
+/// frame (`w` × `h` a frame), pixels without samples included: their
+/// level is the floor's, which raises no maximum.
 fn brightest_around(v: &[f32], w: usize, h: usize) -> Vec<f32> {
     (0..v.len())
         .into_par_iter()
@@ -608,8 +609,10 @@ mod tests {
                 }
             }
         }
-        let (_, spread, left, _) = serial(&filtered, &removed, &occupancy, sigma);
+        let (want, spread, left, _) = serial(&filtered, &removed, &occupancy, sigma);
         assert_eq!((spread, left), (25, 0));
+        let out = energy_aware(&filtered, &removed, &occupancy, sigma);
+        assert_eq!(out.data, want.data);
     }
 
     /// A source among many is part of one smooth field and is spread; the
