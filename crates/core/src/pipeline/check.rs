@@ -7,7 +7,6 @@ use crate::config::{ConfigError, FilterConfig, White};
 use crate::dump::{Header, Record, Validity};
 use crate::imagespace::oidn::Aux;
 use crate::joint::white::auto_white;
-use crate::par::prelude::*;
 
 /// The white luminance `config` asks for on these records. `auto` needs
 /// a valid sample of positive luminance.
@@ -45,24 +44,20 @@ pub(crate) fn aux_fits(aux: &Aux, h: &Header) -> Result<(), ConfigError> {
 
 /// Checks `config` against the dump before the replay: k below the number
 /// of valid samples (else every sample is rejected), joint coordinates
-/// that stay finite in f32 on this film. Returns the number of valid
-/// samples.
+/// that stay finite in f32 on this film. Valid samples are counted only
+/// until there are more than k: a dump that has them is not read on.
 pub fn check(
     config: &FilterConfig,
     records: &[Record],
     header: &Header,
-) -> Result<u64, PipelineError> {
+) -> Result<(), PipelineError> {
     config.validate()?;
     let valid = records
-        .par_chunks(1 << 20)
-        .map(|c| {
-            c.iter()
-                .filter(|r| r.validity(header) == Validity::Valid)
-                .count() as u64
-        })
-        .sum();
-    check_counted(config, header, valid)?;
-    Ok(valid)
+        .iter()
+        .filter(|r| r.validity(header) == Validity::Valid)
+        .take(config.k.saturating_add(1))
+        .count() as u64;
+    check_counted(config, header, valid)
 }
 
 /// k against the number of valid samples: at or above it every σ is +∞
