@@ -12,6 +12,7 @@ use pathdensity::config::{
 };
 use pathdensity::density::IndexKind;
 use pathdensity::dump::Order;
+use pathdensity::imagespace::aux::AuxPrefilter;
 use pathdensity::pipeline::PipelineError;
 use pathdensity::sweep::SweepOptions;
 use pathdensity::synth::SynthParams;
@@ -191,6 +192,12 @@ enum Command {
         /// (needs --albedo).
         #[arg(long)]
         normal: Option<PathBuf>,
+        /// How OIDN treats --albedo and --normal: `accurate` denoises them
+        /// first (right whether they are noisy or not), `none` takes them
+        /// as noise-free (rendered with many samples, or denoised),
+        /// `fast` as they are, possibly noisy (Blender's names).
+        #[arg(long, default_value_t = AuxPrefilter::default())]
+        aux_prefilter: AuxPrefilter,
         /// Worker threads (default: one per core).
         #[arg(long, default_value_t = 0, value_parser = pathdensity::cli::threads)]
         threads: usize,
@@ -462,6 +469,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             reference,
             albedo,
             normal,
+            aux_prefilter,
             threads,
             decisions,
             sigma_map,
@@ -473,6 +481,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             o.reference = reference;
             o.albedo = albedo;
             o.normal = normal;
+            o.aux_prefilter = aux_prefilter;
             o.threads = threads;
             o.decisions = decisions;
             o.sigma_map = sigma_map;

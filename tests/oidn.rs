@@ -221,7 +221,8 @@ fn a_found_oidn_makes_guided_oidn_the_recommended_image() {
     );
 
     // With the renderer's albedo and normal: OIDN's image changes, and
-    // report.json says which were given.
+    // report.json says which were given and how OIDN took them; `fast`
+    // (as they are) and `accurate` (the default: prefiltered) differ.
     let (w, h) = (24, 20);
     let mut albedo = pathdensity::image::Image::new(w, h, 1);
     for (p, px) in albedo.data.iter_mut().enumerate() {
@@ -233,10 +234,10 @@ fn a_found_oidn_makes_guided_oidn_the_recommended_image() {
     };
     pathdensity::io::exr::write_image(tmp.path(), "albedo", &albedo).unwrap();
     pathdensity::io::exr::write_image(tmp.path(), "normal", &normal).unwrap();
-    let runs: Vec<Vec<u8>> = [false, true]
+    let runs: Vec<Vec<u8>> = [None, Some(None), Some(Some("fast"))]
         .iter()
         .map(|&aux| {
-            let out = tmp.path().join(format!("aux-{aux}"));
+            let out = tmp.path().join(format!("aux-{aux:?}"));
             let mut c = pathdensity(&dir);
             c.args([
                 "filter",
@@ -247,19 +248,25 @@ fn a_found_oidn_makes_guided_oidn_the_recommended_image() {
                 "--methods",
                 "oidn",
             ]);
-            if aux {
+            if let Some(prefilter) = aux {
                 c.args(["--albedo", s(&tmp.path().join("albedo.exr"))]);
                 c.args(["--normal", s(&tmp.path().join("normal.exr"))]);
+                if let Some(p) = prefilter {
+                    c.args(["--aux-prefilter", p]);
+                }
             }
             let o = c.output().unwrap();
             assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
             let report: serde_json::Value =
                 serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
-            assert_eq!(report["albedo"].is_string(), aux);
+            assert_eq!(report["albedo"].is_string(), aux.is_some());
+            let prefilter = aux.map(|p| p.unwrap_or("accurate"));
+            assert_eq!(report["aux_prefilter"].as_str(), prefilter);
             std::fs::read(out.join("oidn.exr")).unwrap()
         })
         .collect();
     assert_ne!(runs[0], runs[1], "the albedo changes OIDN's image");
+    assert_ne!(runs[1], runs[2], "the prefilter changes OIDN's image");
 }
 
 /// Without a library (`OIDN_DIR` naming a folder without one) every

@@ -10,7 +10,7 @@ use anyhow::{Context, Result, bail};
 use crate::config::{FilterConfig, Method};
 use crate::density::{Decision, ExactSigma};
 use crate::dump::{DumpReader, Header};
-use crate::imagespace::oidn::Aux;
+use crate::imagespace::aux::{Aux, AuxPrefilter};
 use crate::io::atomic::{self, Staging};
 use crate::io::guard::Inputs;
 use crate::io::{exr, png};
@@ -33,6 +33,8 @@ pub struct FilterOptions {
     /// and statmc's guide (a normal only with an albedo).
     pub albedo: Option<PathBuf>,
     pub normal: Option<PathBuf>,
+    /// How OIDN treats them.
+    pub aux_prefilter: AuxPrefilter,
     /// Worker threads; 0 means one per core.
     pub threads: usize,
     pub decisions: Option<PathBuf>,
@@ -57,6 +59,7 @@ impl FilterOptions {
             reference: None,
             albedo: None,
             normal: None,
+            aux_prefilter: AuxPrefilter::default(),
             threads: 0,
             decisions: None,
             sigma_map: false,
@@ -219,7 +222,9 @@ fn read_aux(
     };
     let albedo = film(albedo)?;
     let normal = opts.normal.as_ref().map(film).transpose()?;
-    Ok(Some(Aux::new(&albedo, normal.as_ref())))
+    Ok(Some(
+        Aux::new(&albedo, normal.as_ref()).with_prefilter(opts.aux_prefilter),
+    ))
 }
 
 /// When the run started, and how long opening it took.
@@ -332,6 +337,10 @@ fn write_outputs(
         denoiser: crate::report::denoiser(&run.config),
         albedo: opts.albedo.as_ref().map(|p| p.display().to_string()),
         normal: opts.normal.as_ref().map(|p| p.display().to_string()),
+        aux_prefilter: opts
+            .albedo
+            .as_ref()
+            .map(|_| opts.aux_prefilter.name().to_string()),
         method_seconds: run.images.iter().map(|e| (e.id(), e.seconds)).collect(),
         energy_removed: EnergyRemoved::new(&run.removed, mean),
         sigma_scale,

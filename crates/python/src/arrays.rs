@@ -8,7 +8,7 @@ use numpy::{
 };
 use pyo3::prelude::*;
 
-use pathdensity_core::imagespace::oidn::Aux;
+use pathdensity_core::imagespace::aux::Aux;
 use pathdensity_format::dump::{Header, Record};
 use pathdensity_format::image::{Image, stored};
 

@@ -133,8 +133,8 @@ impl FilterResult {
 }
 
 /// filter(records, width=None, height=None, frames=1, spp=0, order="unspecified",
-///        *, header=None, reference=None, albedo=None, normal=None, threads=0,
-///        sigma_map=False, **config)
+///        *, header=None, reference=None, albedo=None, normal=None,
+///        aux_prefilter="accurate", threads=0, sigma_map=False, **config)
 ///
 /// Runs the path-density filter and every selected method on `records`, a
 /// C-contiguous (N, 6) float32 array (x, y, t, r, g, b), read in place. The
@@ -144,10 +144,10 @@ impl FilterResult {
 /// "all" or a list of names); the rest default as the command line's. `reference`
 /// is a float array (H, W, 3) or (frames, H, W, 3); so are `albedo` and
 /// `normal`, OIDN's auxiliary inputs and statmc's guide (as `--albedo`
-/// and `--normal`). The GIL is released while the filter runs; do not
+/// and `--normal`; `aux_prefilter` as `--aux-prefilter`). The GIL is released while the filter runs; do not
 /// write to `records` meanwhile.
 #[pyfunction]
-#[pyo3(signature = (records, width=None, height=None, frames=1, spp=0, order="unspecified", *, header=None, reference=None, albedo=None, normal=None, threads=0, sigma_map=false, **config))]
+#[pyo3(signature = (records, width=None, height=None, frames=1, spp=0, order="unspecified", *, header=None, reference=None, albedo=None, normal=None, aux_prefilter="accurate", threads=0, sigma_map=false, **config))]
 #[allow(clippy::too_many_arguments)]
 fn filter(
     py: Python<'_>,
@@ -161,6 +161,7 @@ fn filter(
     reference: Option<&Bound<'_, PyAny>>,
     albedo: Option<&Bound<'_, PyAny>>,
     normal: Option<&Bound<'_, PyAny>>,
+    aux_prefilter: &str,
     threads: usize,
     sigma_map: bool,
     config: Option<&Bound<'_, PyDict>>,
@@ -197,7 +198,8 @@ fn filter(
     };
     let config = config_of(config)?;
     let reference = reference.map(|r| reference_of(r, &h)).transpose()?;
-    let aux = aux_of(albedo, normal, &h)?;
+    let aux_prefilter = aux_prefilter.parse().map_err(value_error)?;
+    let aux = aux_of(albedo, normal, &h)?.map(|a| a.with_prefilter(aux_prefilter));
     let threads = threads.min(pathdensity_core::par::max_threads());
     let exact_sigma = if sigma_map {
         ExactSigma::All

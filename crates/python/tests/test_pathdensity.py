@@ -345,6 +345,14 @@ def test_albedo_and_normal_are_the_commands_flags(tmp_path):
     name = "guided_oidn" if oidn else "guided"
     plain = pd.filter(r, header=h, methods=name)
     assert not same_bits(plain.images[name], res.images[name])
+    # aux_prefilter= is --aux-prefilter.
+    fast = tmp_path / "fast"
+    cli("filter", dump, "-o", fast, "--no-html", "--methods", name, "--albedo", a_exr,
+        "--normal", n_exr, "--aux-prefilter", "fast")
+    res = pd.filter(r, header=h, methods=name, albedo=albedo, normal=normal, aux_prefilter="fast")
+    assert same_bits(res.images[name], read_exrs([fast / f"{name}.exr"], tmp_path))
+    with pytest.raises(ValueError, match="expected accurate, fast or none"):
+        pd.filter(r, header=h, albedo=albedo, aux_prefilter="clean")
     with pytest.raises(ValueError, match="normal needs albedo"):
         pd.filter(r, header=h, normal=normal)
     with pytest.raises(ValueError, match=r"albedo has shape \(4, 24, 3\)"):

@@ -3,6 +3,7 @@
 //! pixels that contain no valid sample (`occupancy` 0) are neither used as
 //! neighbours nor written: docs/filter.md §3 keeps them 0 in every image.
 
+pub mod aux;
 pub mod bilateral;
 pub mod median3;
 pub mod oidn;

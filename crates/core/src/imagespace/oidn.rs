@@ -30,43 +30,9 @@ use std::ffi::{CStr, c_char, c_int, c_void};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+use super::aux::AuxImages;
+pub use super::aux::{Aux, AuxPrefilter};
 use crate::recon::Image;
-
-/// The renderer's first-hit albedo, and optionally its normal (only with
-/// an albedo), the film's size and frames: OIDN's auxiliary images and
-/// statmc's guide. Kept as OIDN reads them, f32 with non-finite values
-/// as 0, made once for every use of a run (up to three OIDN calls: the
-/// image and two held-out halves).
-#[derive(Clone, Debug)]
-pub struct Aux {
-    albedo: Vec<f32>,
-    normal: Option<Vec<f32>>,
-}
-
-impl Aux {
-    pub fn new(albedo: &Image, normal: Option<&Image>) -> Aux {
-        Aux {
-            albedo: oidn_values(albedo),
-            normal: normal.map(oidn_values),
-        }
-    }
-
-    pub(crate) fn albedo(&self) -> &[f32] {
-        &self.albedo
-    }
-
-    pub(crate) fn normal(&self) -> Option<&[f32]> {
-        self.normal.as_deref()
-    }
-}
-
-/// An auxiliary image's values as OIDN takes them: RGB f32, row-major,
-/// frame after frame, non-finite as 0.
-fn oidn_values(img: &Image) -> Vec<f32> {
-    // Finite after the cast: an f64 beyond f32's range would be ∞.
-    let value = |&v: &f64| Some(v as f32).filter(|v| v.is_finite()).unwrap_or(0.0);
-    img.data.iter().flatten().map(value).collect()
-}
 
 /// A denoised image and what had to be changed in its input.
 pub struct Denoised {
@@ -335,6 +301,59 @@ impl Drop for Session<'_> {
     }
 }
 
+/// OIDN's documented prefiltering ([`AuxPrefilter::Accurate`]): the
+/// albedo, then the normal, denoised each on its own by an `RT` filter,
+/// frame by frame (`w` × `h` pixels a frame).
+fn prefilter(
+    s: &Session,
+    albedo: &[f32],
+    normal: Option<&[f32]>,
+    w: usize,
+    h: usize,
+) -> Result<AuxImages, OidnError> {
+    let api = s.api;
+    let one = |name: &CStr, image: &[f32]| {
+        let mut out = vec![0.0f32; image.len()];
+        for (input, output) in image.chunks(3 * w * h).zip(out.chunks_mut(3 * w * h)) {
+            // SAFETY: a live device; the filter is released below.
+            let filter = unsafe { (api.new_filter)(s.device, c"RT".as_ptr()) };
+            s.check("the auxiliary images' filter")?;
+            if filter.is_null() {
+                return Err(OidnError::NoFilter);
+            }
+            let image = |name: &CStr, buf: *mut f32| unsafe {
+                // SAFETY: `buf` holds w·h RGB f32 values, row-major, alive
+                // until the filter runs; OIDN writes only the output.
+                (api.shared_image)(
+                    filter,
+                    name.as_ptr(),
+                    buf.cast(),
+                    FORMAT_FLOAT3,
+                    w,
+                    h,
+                    0,
+                    0,
+                    0,
+                )
+            };
+            image(name, input.as_ptr().cast_mut());
+            image(c"output", output.as_mut_ptr());
+            // SAFETY: a live filter with its images set, released once.
+            unsafe {
+                (api.commit_filter)(filter);
+                (api.execute_filter)(filter);
+                (api.release_filter)(filter);
+            }
+            s.check("prefiltering the auxiliary images")?;
+        }
+        Ok(out)
+    };
+    Ok((
+        one(c"albedo", albedo)?,
+        normal.map(|n| one(c"normal", n)).transpose()?,
+    ))
+}
+
 /// The values OIDN is given for `img`'s frame `f`: RGB f32, row-major.
 fn input(img: &Image, f: usize, non_finite: &mut u64, negative: &mut u64) -> Vec<f32> {
     let mut out = Vec::with_capacity(img.pixels_per_frame() * 3);
@@ -406,16 +425,23 @@ fn denoise_with(
         return Err(OidnError::NoFilter);
     }
     unsafe { (api.set_bool)(s.filter, c"hdr".as_ptr(), true) };
+    let (w, h) = (img.width, img.height);
+    let aux_images = aux
+        .map(|a| a.for_oidn(|albedo, normal| prefilter(&s, albedo, normal, w, h)))
+        .transpose()?;
+    if let Some(a) = aux {
+        // SAFETY: a live filter and a NUL-terminated parameter name.
+        unsafe { (api.set_bool)(s.filter, c"cleanAux".as_ptr(), a.prefilter().clean()) };
+    }
     // SAFETY: a live filter and a NUL-terminated parameter name.
     unsafe { (api.set_int)(s.filter, c"maxMemoryMB".as_ptr(), MAX_MEMORY_MB) };
-    let (w, h) = (img.width, img.height);
     let (mut non_finite, mut negative) = (0, 0);
     let mut out = Image::new(w, h, img.frames);
     let n = img.pixels_per_frame();
     for f in 0..img.frames {
         let mut color = input(img, f, &mut non_finite, &mut negative);
         let mut result = vec![0.0f32; color.len()];
-        let frame = |v: &Vec<f32>| {
+        let frame = |v: &[f32]| {
             debug_assert_eq!(
                 v.len(),
                 3 * n * img.frames,
@@ -423,8 +449,8 @@ fn denoise_with(
             );
             v[3 * n * f..3 * n * (f + 1)].as_ptr().cast_mut()
         };
-        let albedo = aux.map(|a| frame(&a.albedo));
-        let normal = aux.and_then(|a| a.normal.as_ref()).map(frame);
+        let albedo = aux_images.map(|(a, _)| frame(a));
+        let normal = aux_images.and_then(|(_, n)| n).map(frame);
         let set = |name: &CStr, buf: Option<*mut f32>| match buf {
             // SAFETY: `buf` holds w·h RGB f32 values, row-major (OIDN's
             // FLOAT3 with default strides), alive until the filter runs;
@@ -491,17 +517,6 @@ mod tests {
                 None
             }
         }
-    }
-
-    /// A value beyond f32's range is kept as 0, not ∞.
-    #[test]
-    fn auxiliary_images_stay_finite() {
-        let albedo = Image {
-            data: vec![[0.5, 1e300, f64::NAN]; 4],
-            ..Image::new(2, 2, 1)
-        };
-        let aux = Aux::new(&albedo, None);
-        assert_eq!(&aux.albedo()[..3], &[0.5, 0.0, 0.0]);
     }
 
     #[test]
@@ -584,6 +599,70 @@ mod tests {
         };
         let both = Aux::new(&albedo, Some(&normal));
         assert!(denoise(&img, &occupancy, Some(&both)).is_ok());
+    }
+
+    /// `accurate` has OIDN denoise a noisy albedo and normal, each frame
+    /// on its own, before the image: the albedo OIDN is then given is
+    /// nearer the clean one than the renderer's, and the image differs
+    /// from `fast`'s (the noisy albedo as it is) and `none`'s (the noisy
+    /// albedo taken as clean).
+    #[test]
+    fn accurate_denoises_the_albedo_first() {
+        let Some(lib) = oidn() else {
+            return;
+        };
+        let (w, h, frames) = (32, 32, 2);
+        let n = w * h;
+        let mut state = 99u64;
+        let mut noise = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as f64 / (1u64 << 31) as f64 - 0.5
+        };
+        // Frame f's left half at 0.2 and right at 0.8, swapped in frame 1.
+        let level = |p: usize| {
+            let left = (p % n) % w < w / 2;
+            if left == (p < n) { 0.2 } else { 0.8 }
+        };
+        let (mut img, mut clean) = (Image::new(w, h, frames), Image::new(w, h, frames));
+        let mut albedo = Image::new(w, h, frames);
+        for p in 0..n * frames {
+            img.data[p] = [level(p) + 0.6 * noise(); 3];
+            clean.data[p] = [level(p); 3];
+            albedo.data[p] = [level(p) + 0.4 * noise(); 3];
+        }
+        let normal = Image {
+            data: (0..n * frames)
+                .map(|_| [0.2 * noise(), 0.2 * noise(), 1.0])
+                .collect(),
+            ..albedo.clone()
+        };
+        let occupancy = vec![16u32; n * frames];
+        let run = |p: AuxPrefilter| {
+            let aux = Aux::new(&albedo, Some(&normal)).with_prefilter(p);
+            let d = denoise_with(&lib, &img, &occupancy, Some(&aux)).unwrap();
+            (aux, d.image.data)
+        };
+        let (aux, accurate) = run(AuxPrefilter::Accurate);
+        let (given, _) = aux.for_oidn(|_, _| unreachable!("made once")).unwrap();
+        let off = |v: &[f32]| {
+            let sq: f64 = v
+                .iter()
+                .zip(clean.data.iter().flatten())
+                .map(|(a, b)| (*a as f64 - b).powi(2))
+                .sum();
+            (sq / v.len() as f64).sqrt()
+        };
+        assert!(
+            off(given) < 0.5 * off(aux.albedo()),
+            "{} vs {}",
+            off(given),
+            off(aux.albedo())
+        );
+        for other in [AuxPrefilter::Fast, AuxPrefilter::None] {
+            assert_ne!(run(other).1, accurate, "{other}");
+        }
     }
 
     /// Each frame of an animation is denoised with its own frame of the
