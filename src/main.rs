@@ -196,7 +196,7 @@ enum Command {
         /// first (right whether they are noisy or not), `none` takes them
         /// as noise-free (rendered with many samples, or denoised),
         /// `fast` as they are, possibly noisy (Blender's names).
-        #[arg(long, default_value_t = AuxPrefilter::default())]
+        #[arg(long, default_value_t = AuxPrefilter::default(), requires = "albedo")]
         aux_prefilter: AuxPrefilter,
         /// Worker threads (default: one per core).
         #[arg(long, default_value_t = 0, value_parser = pathdensity::cli::threads)]

@@ -79,7 +79,7 @@ pub struct FilterReport {
     pub albedo: Option<String>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub normal: Option<String>,
-    /// How OIDN treated them (`--aux-prefilter`), when an albedo was given.
+    /// How OIDN takes them (`--aux-prefilter`), when an albedo was given.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub aux_prefilter: Option<String>,
     /// Wall time to produce each image from the dump, passes it shares

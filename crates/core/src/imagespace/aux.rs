@@ -66,10 +66,10 @@ pub(crate) type AuxImages = (Vec<f32>, Option<Vec<f32>>);
 
 /// The renderer's first-hit albedo, and optionally its normal (only with
 /// an albedo), the film's size and frames. Kept as OIDN reads them, f32
-/// with non-finite values as 0, made once for every use of a run (up to
-/// three OIDN calls: the image and two held-out halves), and prefiltered
-/// at most once.
-#[derive(Clone, Debug)]
+/// with non-finite values as 0, made once for every use of a run (every
+/// OIDN call: the image, two held-out halves, `--denoise oidn`'s), and
+/// prefiltered at most once. Not `Clone`: a copy would prefilter again.
+#[derive(Debug)]
 pub struct Aux {
     albedo: Vec<f32>,
     normal: Option<Vec<f32>>,
@@ -188,9 +188,14 @@ mod tests {
         assert_eq!(calls.get(), 1);
         assert_eq!(aux.albedo()[0], 0.25, "statmc's guide is the renderer's");
         let failing = Aux::new(&img, None);
+        let tries = std::cell::Cell::new(0);
         for _ in 0..2 {
-            let err = failing.for_oidn(|_, _| Err(OidnError::NoFilter));
+            let err = failing.for_oidn(|_, _| {
+                tries.set(tries.get() + 1);
+                Err(OidnError::NoFilter)
+            });
             assert_eq!(err, Err(OidnError::NoFilter));
         }
+        assert_eq!(tries.get(), 1, "the failure is kept, not retried");
     }
 }

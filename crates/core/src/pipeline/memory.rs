@@ -21,6 +21,7 @@ use crate::config::FilterConfig;
 use crate::density::FinalPass;
 use crate::density::evidence::GRID_SAMPLES;
 use crate::dump::Header;
+use crate::imagespace::aux::AuxPrefilter;
 use crate::method::Method;
 
 /// Bytes a run holds whatever its film: the binary, thread stacks.
@@ -38,7 +39,8 @@ const IMAGE: u64 = 24;
 const MEASURING: u64 = 61;
 const PER_IMAGE_MEASURED: u64 = 61;
 /// Bytes a pixel of the reference, and of the renderer's albedo and
-/// normal, held the whole run.
+/// normal, held the whole run (the latter twice where OIDN prefilters
+/// them: the run keeps OIDN's copy too).
 const REFERENCE: u64 = 24;
 const AUX: u64 = 24;
 /// Bytes a pixel of the σ map: its image and its sums.
@@ -73,8 +75,10 @@ pub fn needed(config: &FilterConfig, header: &Header, options: &RunOptions) -> u
         Some(_) => made.max(measuring) + REFERENCE,
         None => made,
     };
-    if options.aux.is_some() {
-        per_pixel += AUX;
+    let oidn = images.iter().any(|&(m, d)| d || m.needs_oidn());
+    if let Some(aux) = options.aux {
+        let prefiltered = oidn && aux.prefilter() == AuxPrefilter::Accurate;
+        per_pixel += if prefiltered { 2 * AUX } else { AUX };
     }
     if options.exact_sigma.any() {
         per_pixel += SIGMA_MAP;
@@ -84,7 +88,6 @@ pub fn needed(config: &FilterConfig, header: &Header, options: &RunOptions) -> u
         FinalPass::All if records <= GRID_SAMPLES => PER_GRID_SAMPLE * records,
         _ => 0,
     };
-    let oidn = images.iter().any(|&(m, d)| d || m.needs_oidn());
     let fixed = FIXED + if oidn { FIXED_OIDN } else { 0 };
     pixels
         .saturating_mul(per_pixel)
