@@ -20,7 +20,8 @@ p.add_argument("--extra", default="")
 p.add_argument("--csv")
 p.add_argument("--threads", default="2")
 p.add_argument("--aux", action="store_true",
-               help="give OIDN and statmc the dump's RENDERER-SCENE-albedo.exr and -normal.exr where they exist")
+               help="give OIDN and statmc the dump's RENDERER-SCENE-albedo.exr and -normal.exr where they exist "
+                    "(OIDN prefilters them: filter's default --aux-prefilter accurate; --extra to change it)")
 a = p.parse_args()
 
 rows = []
