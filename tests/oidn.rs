@@ -262,6 +262,15 @@ fn a_found_oidn_makes_guided_oidn_the_recommended_image() {
             assert_eq!(report["albedo"].is_string(), aux.is_some());
             let prefilter = aux.map(|p| p.unwrap_or("accurate"));
             assert_eq!(report["aux_prefilter"].as_str(), prefilter);
+            // The denoiser's phrase says how OIDN took them.
+            let denoiser = report["denoiser"].as_str().unwrap_or_default();
+            let said = prefilter.map(|p| format!("albedo and normal (--aux-prefilter {p})"));
+            assert_eq!(
+                said.is_some_and(|s| denoiser.ends_with(&s)),
+                aux.is_some(),
+                "{denoiser}"
+            );
+            assert!(denoiser.starts_with("OIDN 2."), "{denoiser}");
             std::fs::read(out.join("oidn.exr")).unwrap()
         })
         .collect();

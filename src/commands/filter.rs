@@ -194,6 +194,7 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
         &dump,
         &run,
         reference.as_ref(),
+        aux.as_ref(),
         staging.path(),
         &clock,
     )
@@ -278,6 +279,7 @@ fn write_outputs(
     dump: &DumpReader,
     run: &pipeline::Run,
     reference: Option<&Image>,
+    aux: Option<&Aux>,
     dir: &Path,
     clock: &Clock,
 ) -> Result<FilterReport> {
@@ -334,7 +336,7 @@ fn write_outputs(
         metrics: run.metrics.clone(),
         recommended: pipeline::recommended(&run.images),
         reference: opts.reference.as_ref().map(|p| p.display().to_string()),
-        denoiser: crate::report::denoiser(&run.config),
+        denoiser: crate::report::denoiser(&run.config, aux),
         albedo: opts.albedo.as_ref().map(|p| p.display().to_string()),
         normal: opts.normal.as_ref().map(|p| p.display().to_string()),
         aux_prefilter: opts

@@ -241,7 +241,7 @@ fn filter(
         counts: json_object(py, &run.counts)?.unbind(),
         metrics: json_object(py, &run.metrics)?.unbind(),
         recommended: pipeline::recommended(&run.images).map(|i| i.to_string()),
-        denoiser: pipeline::denoiser(&run.config),
+        denoiser: pipeline::denoiser(&run.config, aux.as_ref()),
         rejected: image_array(py, &run.removed)?.unbind(),
         sigma: match (&run.sigma_image, sigma_map) {
             (Some(s), true) => Some(image_array(py, s)?.unbind()),

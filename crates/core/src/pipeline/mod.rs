@@ -8,6 +8,7 @@ mod check;
 pub mod estimate;
 pub mod memory;
 
+use crate::imagespace::aux::Aux;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Instant;
@@ -100,15 +101,27 @@ pub fn recommended(images: &[MethodImage]) -> Option<ImageId> {
         .map(ImageId::from)
 }
 
-/// Which denoiser a run with `config` used, in one phrase for the
-/// summary and report.json: OIDN (its version and file) when an image
-/// needs it, else the statistical denoiser and why OIDN was not used
-/// (not asked for, or not found); `None` when no image is denoised.
-pub fn denoiser(config: &FilterConfig) -> Option<String> {
+/// Which denoiser a run with `config` (and the renderer's `aux` images)
+/// used, in one phrase for the summary and report.json: OIDN (its
+/// version and file, and how it took the renderer's images) when an
+/// image needs it, else the statistical denoiser and why OIDN was not
+/// used (not asked for, or not found); `None` when no image is denoised.
+pub fn denoiser(config: &FilterConfig, aux: Option<&Aux>) -> Option<String> {
     use crate::imagespace::oidn;
     use crate::method::Piece;
     if config.denoise == Denoise::Oidn || config.methods.iter().any(|m| m.needs_oidn()) {
-        return oidn::library().ok().map(|l| l.describe());
+        let images = |a: &Aux| match a.normal() {
+            Some(_) => "albedo and normal",
+            None => "albedo",
+        };
+        let given = aux.map_or(String::new(), |a| {
+            format!(
+                ", with the renderer's {} (--aux-prefilter {})",
+                images(a),
+                a.prefilter()
+            )
+        });
+        return oidn::library().ok().map(|l| l.describe() + &given);
     }
     if !config
         .methods
