@@ -108,21 +108,10 @@ fn prefilter(
         unsafe { (api.set_int)(filter.handle, c"maxMemoryMB".as_ptr(), MAX_MEMORY_MB) };
         let mut out = vec![0.0f32; image.len()];
         for (input, output) in image.chunks(3 * w * h).zip(out.chunks_mut(3 * w * h)) {
-            // SAFETY: `buf` holds w·h RGB f32 values, row-major, alive
+            // SAFETY: each holds one frame, w·h RGB f32 values, alive
             // until the filter runs; OIDN writes only the output.
-            let set = |name: &CStr, buf: *mut f32| unsafe {
-                (api.shared_image)(
-                    filter.handle,
-                    name.as_ptr(),
-                    buf.cast(),
-                    FORMAT_FLOAT3,
-                    w,
-                    h,
-                    0,
-                    0,
-                    0,
-                )
-            };
+            let set =
+                |name: &CStr, buf: *mut f32| unsafe { share(api, filter.handle, name, buf, w, h) };
             set(name, input.as_ptr().cast_mut());
             set(c"output", output.as_mut_ptr());
             // SAFETY: a live filter with both images set.
@@ -138,6 +127,29 @@ fn prefilter(
         one(c"albedo", albedo)?,
         normal.map(|n| one(c"normal", n)).transpose()?,
     ))
+}
+
+/// Gives `filter` the image `name` in place: `buf`'s w × h RGB f32
+/// values, row-major (OIDN's FLOAT3 with default strides).
+///
+/// # Safety
+/// `filter` is live; `buf` holds w·h·3 values and stays alive, unmoved,
+/// until the filter has run.
+unsafe fn share(api: &Api, filter: Handle, name: &CStr, buf: *mut f32, w: usize, h: usize) {
+    // SAFETY: as the caller vouches; `name` is NUL-terminated.
+    unsafe {
+        (api.shared_image)(
+            filter,
+            name.as_ptr(),
+            buf.cast(),
+            FORMAT_FLOAT3,
+            w,
+            h,
+            0,
+            0,
+            0,
+        )
+    }
 }
 
 /// A filter of a [`Session`]'s device besides its own, released when
@@ -252,23 +264,10 @@ fn denoise_with(
         let albedo = aux_images.map(|(a, _)| frame(a));
         let normal = aux_images.and_then(|(_, n)| n).map(frame);
         let set = |name: &CStr, buf: Option<*mut f32>| match buf {
-            // SAFETY: `buf` holds w·h RGB f32 values, row-major (OIDN's
-            // FLOAT3 with default strides), alive until the filter runs;
-            // OIDN writes only the output, so the auxiliary images, read
-            // through a shared borrow, are never written.
-            Some(b) => unsafe {
-                (api.shared_image)(
-                    s.filter,
-                    name.as_ptr(),
-                    b.cast(),
-                    FORMAT_FLOAT3,
-                    w,
-                    h,
-                    0,
-                    0,
-                    0,
-                )
-            },
+            // SAFETY: `buf` holds w·h RGB f32 values, alive until the
+            // filter runs; OIDN writes only the output, so the auxiliary
+            // images, read through a shared borrow, are never written.
+            Some(b) => unsafe { share(api, s.filter, name, b, w, h) },
             None => unsafe { (api.unset_image)(s.filter, name.as_ptr()) },
         };
         set(c"color", Some(color.as_mut_ptr()));
