@@ -352,3 +352,49 @@ fn without_oidn_its_options_are_refused_and_guided_is_recommended() {
         "the albedo guides statmc"
     );
 }
+
+/// OIDN's image of the mean is made once for the run: `oidn` (made
+/// beside the replay) and `guided_oidn` (after it) share it. Counted by
+/// the channels OIDN's input had set to 0: one pixel's mean is negative
+/// on red, so one channel, whichever images start from that image.
+#[test]
+fn oidn_denoises_the_mean_once_for_every_image() {
+    let Some((_, dir)) = oidn() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let (w, h) = (12u32, 10u32);
+    let mut records = Vec::new();
+    for pass in 0..8u32 {
+        for y in 0..h {
+            for x in 0..w {
+                let v = 0.5 + 0.01 * ((x * 7 + y * 3 + pass * 5) % 11) as f32;
+                let r = if (x, y) == (3, 4) { -0.2 } else { v };
+                let (fx, fy) = (x as f32 + 0.5, y as f32 + 0.5);
+                records.push(pathdensity::dump::Record::new(fx, fy, 0.0, [r, v, v]));
+            }
+        }
+    }
+    let mut header = common::header(w, h, 1);
+    header.spp = 8;
+    let dump = common::write_dump(tmp.path(), "neg.pds", &header, &records);
+    let zeroed = |methods: &str| {
+        let out = tmp.path().join(methods.replace(',', "_"));
+        let o = pathdensity(&dir)
+            .args(["filter", s(&dump), "-o", s(&out), "--no-html"])
+            .args(["--methods", methods, "--held-out", "false"])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+        report["warnings"].to_string()
+    };
+    let one = "0 non-finite and 1 negative channels";
+    for methods in [
+        "mean,oidn",
+        "mean,guided_oidn",
+        "mean,oidn,oidn_ci,guided_oidn",
+    ] {
+        let warnings = zeroed(methods);
+        assert!(warnings.contains(one), "{methods}: {warnings}");
+    }
+}

@@ -72,6 +72,10 @@ pub struct Shared<'a> {
     groups: OnceLock<(PixelGroups<'a>, f64)>,
     /// Every pixel's confidence interval (the `_ci` methods).
     interval: OnceLock<(Interval, f64)>,
+    /// OIDN's image of the mean and the seconds OIDN took: `oidn` (made
+    /// beside the replay) and `guided_oidn` (after it) start from the
+    /// same one.
+    oidn_mean: OnceLock<Result<(Arc<Image>, f64), OidnError>>,
     /// Channels OIDN's input had non-finite, and negative, set to 0, over
     /// every image denoised.
     oidn_zeroed: [AtomicU64; 2],
@@ -84,6 +88,7 @@ impl<'a> Shared<'a> {
             header,
             groups: OnceLock::new(),
             interval: OnceLock::new(),
+            oidn_mean: OnceLock::new(),
             oidn_zeroed: Default::default(),
         }
     }
@@ -129,8 +134,6 @@ pub struct Estimators<'s, 'a> {
     core: &'s Core,
     robust: OnceLock<(RobustImages, f64)>,
     mon: OnceLock<(MonImages, f64)>,
-    /// OIDN's image of the mean (`oidn`, and `oidn_ci` starts from it).
-    oidn_mean: OnceLock<Result<(Arc<Image>, f64), OidnError>>,
     filtered_energy: OnceLock<(Arc<Image>, f64)>,
     /// The filter's decisions, one byte per record ([`Self::with_decisions`]).
     decisions: Option<&'s [u8]>,
@@ -169,7 +172,6 @@ impl<'s, 'a> Estimators<'s, 'a> {
             core,
             robust: OnceLock::new(),
             mon: OnceLock::new(),
-            oidn_mean: OnceLock::new(),
             filtered_energy: OnceLock::new(),
             decisions: None,
             accepted_interval: OnceLock::new(),
@@ -301,13 +303,10 @@ impl<'s, 'a> Estimators<'s, 'a> {
                 (Arc::clone(img), *s)
             }
             Method::Guided => self.guided_image(),
-            Method::Oidn => {
-                let (denoised, s) = self.oidn_mean()?;
-                (Arc::clone(denoised), *s)
-            }
+            Method::Oidn => self.oidn_mean()?,
             Method::OidnCi => {
                 let (denoised, s) = self.oidn_mean()?;
-                made(self.bounded(denoised, *s))
+                made(self.bounded(&denoised, s))
             }
             Method::GuidedOidn => self.guided_oidn_image()?,
         })
@@ -386,15 +385,15 @@ impl<'s, 'a> Estimators<'s, 'a> {
         })
     }
 
-    /// OIDN's image of the mean, made once, and the seconds from the dump.
-    fn oidn_mean(&self) -> Result<&(Arc<Image>, f64), OidnError> {
-        self.oidn_mean
-            .get_or_init(|| {
-                let (d, s) = self.oidn(&self.core.reconstruction.mean)?;
-                Ok((Arc::new(d), self.core.reconstruct_seconds + s))
-            })
-            .as_ref()
-            .map_err(Clone::clone)
+    /// OIDN's image of the mean, made once for the run ([`Shared`]), and
+    /// the seconds from the dump.
+    fn oidn_mean(&self) -> Result<(Arc<Image>, f64), OidnError> {
+        let made = self.shared.oidn_mean.get_or_init(|| {
+            let (d, s) = self.oidn(&self.core.reconstruction.mean)?;
+            Ok((Arc::new(d), s))
+        });
+        let (denoised, s) = made.as_ref().map_err(Clone::clone)?;
+        Ok((Arc::clone(denoised), self.core.reconstruct_seconds + s))
     }
 
     /// `method`'s image denoised by OIDN (`METHOD+oidn`), and the seconds
@@ -488,7 +487,7 @@ mod tests {
                 self.mon.get().is_some(),
                 self.filtered_energy.get().is_some(),
                 self.shared.interval.get().is_some(),
-                self.oidn_mean.get().is_some(),
+                self.shared.oidn_mean.get().is_some(),
                 self.accepted_interval.get().is_some(),
                 self.statmc.get().is_some(),
             ];

@@ -34,7 +34,7 @@ impl Estimators<'_, '_> {
     /// `guided_oidn`'s image and the seconds from the dump.
     pub(super) fn guided_oidn_image(&self) -> Result<(Arc<Image>, f64), OidnError> {
         let (denoised, s) = self.oidn_mean()?;
-        let (mut out, s) = self.guided(denoised, *s);
+        let (mut out, s) = self.guided(&denoised, s);
         let half = |second, decided: &_| self.guided_oidn_of_half(second, decided);
         let (decided, t) = timed(|| self.held_out(&mut out, Whites::Pixels, half));
         decided?;
