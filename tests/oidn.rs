@@ -356,7 +356,8 @@ fn without_oidn_its_options_are_refused_and_guided_is_recommended() {
 /// OIDN's image of the mean is made once for the run: `oidn` (made
 /// beside the replay) and `guided_oidn` (after it) share it. Counted by
 /// the channels OIDN's input had set to 0: one pixel's mean is negative
-/// on red, so one channel, whichever images start from that image.
+/// on red, so one channel, whichever images start from that image
+/// (`mean+oidn` of `--denoise oidn` is `oidn`'s image too).
 #[test]
 fn oidn_denoises_the_mean_once_for_every_image() {
     let Some((_, dir)) = oidn() else { return };
@@ -377,10 +378,20 @@ fn oidn_denoises_the_mean_once_for_every_image() {
     header.spp = 8;
     let dump = common::write_dump(tmp.path(), "neg.pds", &header, &records);
     let zeroed = |methods: &str| {
-        let out = tmp.path().join(methods.replace(',', "_"));
+        let (methods, denoise) = methods.split_once(' ').unwrap_or((methods, "none"));
+        let out = tmp
+            .path()
+            .join(format!("{}_{denoise}", methods.replace(',', "_")));
         let o = pathdensity(&dir)
             .args(["filter", s(&dump), "-o", s(&out), "--no-html"])
-            .args(["--methods", methods, "--held-out", "false"])
+            .args([
+                "--methods",
+                methods,
+                "--held-out",
+                "false",
+                "--denoise",
+                denoise,
+            ])
             .output()
             .unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -388,13 +399,17 @@ fn oidn_denoises_the_mean_once_for_every_image() {
             serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
         report["warnings"].to_string()
     };
-    let one = "0 non-finite and 1 negative channels";
-    for methods in [
-        "mean,oidn",
-        "mean,guided_oidn",
-        "mean,oidn,oidn_ci,guided_oidn",
-    ] {
+    // `--denoise oidn` denoises `filtered` too, whose pixel is negative
+    // as well: one channel more.
+    let runs = [
+        ("mean,oidn", 1),
+        ("mean,guided_oidn", 1),
+        ("mean,oidn,oidn_ci,guided_oidn", 1),
+        ("mean,oidn oidn", 2),
+    ];
+    for (methods, negative) in runs {
         let warnings = zeroed(methods);
-        assert!(warnings.contains(one), "{methods}: {warnings}");
+        let counted = format!("0 non-finite and {negative} negative channels");
+        assert!(warnings.contains(&counted), "{methods}: {warnings}");
     }
 }

@@ -399,6 +399,10 @@ impl<'s, 'a> Estimators<'s, 'a> {
     /// `method`'s image denoised by OIDN (`METHOD+oidn`), and the seconds
     /// from the dump.
     pub fn denoised(&self, method: Method) -> Result<(Arc<Image>, f64), OidnError> {
+        if method == Method::Mean {
+            // `mean+oidn` is `oidn`'s image.
+            return self.oidn_mean();
+        }
         let (img, s) = self.image(method)?;
         let (denoised, t) = self.oidn(&img)?;
         Ok((Arc::new(denoised), s + t))
