@@ -54,7 +54,22 @@ impl Progress for Bar {
         self.0.set_message(msg.to_string());
     }
     fn finish(&self) {
+        self.0.disable_steady_tick();
         self.0.finish_and_clear();
+    }
+    /// A stage of few long steps (the images): its elapsed time ticks
+    /// between them.
+    fn stage(&self, what: &str, len: u64) {
+        self.0.set_message(what.to_string());
+        self.0.reset();
+        self.0.set_style(
+            ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len} ({elapsed})")
+                .expect("static template")
+                .progress_chars("=> "),
+        );
+        self.0.set_length(len);
+        self.0
+            .enable_steady_tick(std::time::Duration::from_millis(250));
     }
 }
 

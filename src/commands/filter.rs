@@ -180,6 +180,8 @@ pub fn filter_with_progress(opts: &FilterOptions, progress: &dyn Progress) -> Re
             aux: aux.as_ref(),
         },
     );
+    // A refusal or a failure leaves no bar above its message.
+    progress.finish();
     dump.intact()?;
     // A property of the dump (no valid sample, too large a film) names it.
     let run = run.with_context(|| opts.dump.display().to_string())?;

@@ -12,6 +12,10 @@ pub trait Progress: Sync {
     fn message(&self, _msg: &str) {}
     /// The work is done (a bar clears itself).
     fn finish(&self) {}
+    /// A new piece of the same work begins, `len` steps long, named
+    /// `what`: the increments that follow count its steps (a bar starts
+    /// again at 0).
+    fn stage(&self, _what: &str, _len: u64) {}
 }
 
 /// Reports nothing.

@@ -26,6 +26,7 @@ pub mod summary;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 
 use anyhow::{Context, Result, bail};
 
@@ -189,7 +190,7 @@ pub fn batch(opts: &BatchOptions, progress: &dyn Progress) -> Result<Outcome> {
     progress.set_length(mine.iter().map(|&(_, size)| samples(size)).sum());
     let mut entries: Vec<Entry> = Vec::with_capacity(mine.len());
     for (job, size) in mine {
-        let entry = run_job(job, opts, &protect, &Within(progress));
+        let entry = run_job(job, opts, &protect, &Within::new(progress));
         if entry.status != Status::Filtered {
             progress.inc(samples(size));
         }
@@ -314,13 +315,31 @@ fn batch_hash(all: &[Job]) -> String {
     format!("{:016x}", h.digest())
 }
 
-/// Progress of one dump's filter inside the batch's bar: its samples
-/// count, its own length and end do not.
-struct Within<'a>(&'a dyn Progress);
+/// Progress of one dump's filter inside the batch's bar: its replay's
+/// samples count; its own length, its later stages (the images) and its
+/// end do not.
+struct Within<'a> {
+    batch: &'a dyn Progress,
+    replaying: AtomicBool,
+}
+
+impl<'a> Within<'a> {
+    fn new(batch: &'a dyn Progress) -> Within<'a> {
+        Within {
+            batch,
+            replaying: AtomicBool::new(true),
+        }
+    }
+}
 
 impl Progress for Within<'_> {
     fn inc(&self, n: u64) {
-        self.0.inc(n);
+        if self.replaying.load(Relaxed) {
+            self.batch.inc(n);
+        }
+    }
+    fn stage(&self, _what: &str, _len: u64) {
+        self.replaying.store(false, Relaxed);
     }
 }
 

@@ -327,9 +327,11 @@ pub fn run(
                 // Every sample accepted: decision-free images read no filtered image.
                 let rec = Reconstruction::all_accepted(Arc::new(mean), occupancy);
                 let core = Core::new(rec, t.elapsed().as_secs_f64(), 0.0);
+                // Beside the replay, whose bar counts samples: not counted.
                 let images = images(
                     &Estimators::before_white(&shared, config, &core).with_aux(options.aux),
                     &beside,
+                    &crate::progress::Silent,
                 );
                 // What the later images share that reads only the samples.
                 shared.prepare(&decided);
@@ -338,7 +340,11 @@ pub fn run(
         )
     });
     let (mut result, white) = main?;
-    options.progress.finish();
+    // The images made after the replay, then their metrics, as a stage
+    // of their own: at a production frame's size they take as long.
+    let measured = options.reference.is_some() as usize;
+    let after = (white_only.len() + decided.len() + measured) as u64;
+    options.progress.stage("images", after);
     release_freed_memory();
     // The exact σ are read once, by the σ map, and dropped as soon as it
     // is made (at 8 a pixel, the most the report takes, they weigh more
@@ -365,6 +371,7 @@ pub fn run(
                         .with_aux(options.aux)
                         .with_decisions(&result.decisions),
                     &decided,
+                    options.progress,
                 );
                 (core, late)
             },
@@ -375,6 +382,7 @@ pub fn run(
                             &Estimators::new(&shared, config, white, &undecided_core)
                                 .with_aux(options.aux),
                             &white_only,
+                            options.progress,
                         )
                     },
                     || sigmas.map(|s| density::sigma_map(records, header, &s)),
@@ -388,6 +396,7 @@ pub fn run(
         Some(r) => {
             let all: Vec<&Image> = images.iter().map(|e| &*e.image).collect();
             let m = metrics::compare_all(&all, r, config.exposure);
+            options.progress.inc(1);
             images.iter().map(MethodImage::id).zip(m).collect()
         }
         None => BTreeMap::new(),
@@ -402,6 +411,7 @@ pub fn run(
             "OIDN takes finite, non-negative values: {non_finite} non-finite and {negative} negative channels of its inputs were set to 0"
         ));
     }
+    options.progress.finish();
     Ok(Run {
         config: *config,
         white,
@@ -434,10 +444,11 @@ fn release_freed_memory() {
 }
 
 /// `wanted`'s images in parallel, after the work they share (each is
-/// deterministic on its own).
+/// deterministic on its own), each a step of `progress` once made.
 fn images(
     estimators: &Estimators,
     wanted: &[(Method, bool)],
+    progress: &dyn Progress,
 ) -> Result<Vec<MethodImage>, PipelineError> {
     estimators.prepare(wanted);
     wanted
@@ -452,6 +463,7 @@ fn images(
                 image: ImageId { method, denoised },
                 problem,
             })?;
+            progress.inc(1);
             Ok(MethodImage {
                 method,
                 denoised,
@@ -530,6 +542,67 @@ mod tests {
                     e.method
                 );
             }
+        }
+    }
+
+    /// What a run tells its progress: the replay's samples, then a stage
+    /// of the images made after it and their metrics, one step each
+    /// (the images made beside the replay are not counted twice), then
+    /// the end.
+    #[test]
+    fn progress_counts_the_samples_then_the_later_images() {
+        use std::sync::Mutex;
+        #[derive(Default)]
+        struct Log(Mutex<Vec<String>>);
+        impl Progress for Log {
+            fn inc(&self, n: u64) {
+                self.0.lock().unwrap().push(format!("inc {n}"));
+            }
+            fn stage(&self, what: &str, len: u64) {
+                self.0.lock().unwrap().push(format!("stage {what} {len}"));
+            }
+            fn finish(&self) {
+                self.0.lock().unwrap().push("finish".into());
+            }
+        }
+        let synth = SynthParams {
+            width: 16,
+            height: 12,
+            spp: 8,
+            ..SynthParams::default()
+        };
+        let (records, h): (Vec<Record>, Header) = (synth.records().collect(), synth.header());
+        let reference = crate::recon::Image::for_header(&h);
+        for reference in [None, Some(&reference)] {
+            let log = Log::default();
+            let options = RunOptions {
+                threads: 2,
+                exact_sigma: ExactSigma::None,
+                reference,
+                progress: &log,
+                aux: None,
+            };
+            let config = FilterConfig::DEFAULT;
+            let run = run(&records, &h, &config, &options).unwrap();
+            let log = log.0.into_inner().unwrap();
+            let stage = log.iter().position(|l| l.starts_with("stage")).unwrap();
+            let samples: u64 = log[..stage]
+                .iter()
+                .map(|l| l.strip_prefix("inc ").unwrap().parse::<u64>().unwrap())
+                .sum();
+            assert_eq!(samples, records.len() as u64);
+            // mean is made beside the replay; filtered, filtered_energy
+            // and guided after it.
+            let beside = images_of(&config)
+                .iter()
+                .filter(|(m, _)| !m.needs_white() && !m.needs_decisions())
+                .count();
+            let later = run.images.len() - beside + reference.is_some() as usize;
+            assert!(beside >= 1 && later >= 2);
+            assert_eq!(log[stage], format!("stage images {later}"));
+            let steps = &log[stage + 1..log.len() - 1];
+            assert_eq!(steps, vec!["inc 1".to_string(); later], "{log:?}");
+            assert_eq!(log.last().unwrap(), "finish");
         }
     }
 }
