@@ -28,6 +28,11 @@ use crate::method::Method;
 const FIXED: u64 = 24_000_000;
 /// Bytes OIDN's library holds once loaded (its weights and threads).
 const FIXED_OIDN: u64 = 150_000_000;
+/// Bytes more OIDN holds when told its auxiliary images are clean (the
+/// larger network it then runs at high quality), beside [`AUX`] more a
+/// pixel: fitted to the quarter and the whole 1080p frame
+/// (docs/BENCHMARKS.md, "OIDN's auxiliary images at 1080p").
+const FIXED_OIDN_CLEAN: u64 = 130_000_000;
 /// Bytes a pixel costs in the bare run, its pages written: the mean and
 /// filtered images, the occupancy, the reconstruction's sums, the
 /// replay's stored samples.
@@ -76,9 +81,14 @@ pub fn needed(config: &FilterConfig, header: &Header, options: &RunOptions) -> u
         None => made,
     };
     let oidn = images.iter().any(|&(m, d)| d || m.needs_oidn());
+    let mut fixed = FIXED + if oidn { FIXED_OIDN } else { 0 };
     if let Some(aux) = options.aux {
         let prefiltered = oidn && aux.prefilter() == AuxPrefilter::Accurate;
         per_pixel += if prefiltered { 2 * AUX } else { AUX };
+        if oidn && aux.prefilter().clean() {
+            per_pixel += AUX;
+            fixed += FIXED_OIDN_CLEAN;
+        }
     }
     if options.exact_sigma.any() {
         per_pixel += SIGMA_MAP;
@@ -88,7 +98,6 @@ pub fn needed(config: &FilterConfig, header: &Header, options: &RunOptions) -> u
         FinalPass::All if records <= GRID_SAMPLES => PER_GRID_SAMPLE * records,
         _ => 0,
     };
-    let fixed = FIXED + if oidn { FIXED_OIDN } else { 0 };
     pixels
         .saturating_mul(per_pixel)
         .saturating_add(records.saturating_mul(PER_RECORD))
@@ -278,6 +287,38 @@ mod tests {
         assert_eq!(
             needed(&c, &h, &sigma) - plain,
             PIXELS * SIGMA_MAP + 8 * 1_000
+        );
+    }
+
+    /// OIDN told its auxiliary images are clean (`accurate`, `none`) runs
+    /// a larger network; `accurate` also keeps the prefiltered copy.
+    #[test]
+    fn oidns_clean_mode_is_counted() {
+        let h = frame(1_000);
+        let c = config("mean,filtered,oidn");
+        let with = |prefilter| {
+            let aux = crate::imagespace::oidn::Aux::new(&Image::new(1, 1, 1), None)
+                .with_prefilter(prefilter);
+            let o = RunOptions {
+                aux: Some(&aux),
+                ..options(None)
+            };
+            needed(&c, &h, &o)
+        };
+        let fast = with(AuxPrefilter::Fast);
+        let clean = PIXELS * AUX + FIXED_OIDN_CLEAN;
+        assert_eq!(with(AuxPrefilter::None) - fast, clean);
+        assert_eq!(with(AuxPrefilter::Accurate) - fast, clean + PIXELS * AUX);
+        // Without OIDN the images are statmc's guide alone.
+        let statmc = config("mean,filtered,guided");
+        let aux = crate::imagespace::oidn::Aux::new(&Image::new(1, 1, 1), None);
+        let o = RunOptions {
+            aux: Some(&aux),
+            ..options(None)
+        };
+        assert_eq!(
+            needed(&statmc, &h, &o) - needed(&statmc, &h, &options(None)),
+            PIXELS * AUX
         );
     }
 
