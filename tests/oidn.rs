@@ -357,7 +357,7 @@ fn without_oidn_its_options_are_refused_and_guided_is_recommended() {
 /// beside the replay) and `guided_oidn` (after it) share it. Counted by
 /// the channels OIDN's input had set to 0: one pixel's mean is negative
 /// on red, so one channel, whichever images start from that image
-/// (`mean+oidn` of `--denoise oidn` is `oidn`'s image too).
+/// (`--denoise oidn` adds `oidn` beside the images it denoises).
 #[test]
 fn oidn_denoises_the_mean_once_for_every_image() {
     let Some((_, dir)) = oidn() else { return };
@@ -399,13 +399,13 @@ fn oidn_denoises_the_mean_once_for_every_image() {
             serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
         report["warnings"].to_string()
     };
-    // `--denoise oidn` denoises `filtered` too, whose pixel is negative
-    // as well: one channel more.
+    // `--denoise oidn` adds `oidn` and denoises `filtered` too, whose
+    // pixel is negative as well: one channel more.
     let runs = [
         ("mean,oidn", 1),
         ("mean,guided_oidn", 1),
         ("mean,oidn,oidn_ci,guided_oidn", 1),
-        ("mean,oidn oidn", 2),
+        ("mean,guided_oidn oidn", 2),
     ];
     for (methods, negative) in runs {
         let warnings = zeroed(methods);

@@ -74,8 +74,10 @@ pub struct Shared<'a> {
     interval: OnceLock<(Interval, f64)>,
     /// OIDN's image of the mean and the seconds OIDN took: `oidn` (made
     /// beside the replay) and `guided_oidn` (after it) start from the
-    /// same one.
-    oidn_mean: OnceLock<Result<(Arc<Image>, f64), OidnError>>,
+    /// same one. Unlike the rest, it reads an [`Estimators`]' core: every
+    /// Estimators over one Shared must hold the same mean (the run's
+    /// cores share its `Arc`; the mean is kept beside the image to check).
+    oidn_mean: OnceLock<Result<(Arc<Image>, Arc<Image>, f64), OidnError>>,
     /// Channels OIDN's input had non-finite, and negative, set to 0, over
     /// every image denoised.
     oidn_zeroed: [AtomicU64; 2],
@@ -388,21 +390,19 @@ impl<'s, 'a> Estimators<'s, 'a> {
     /// OIDN's image of the mean, made once for the run ([`Shared`]), and
     /// the seconds from the dump.
     fn oidn_mean(&self) -> Result<(Arc<Image>, f64), OidnError> {
+        let mean = &self.core.reconstruction.mean;
         let made = self.shared.oidn_mean.get_or_init(|| {
-            let (d, s) = self.oidn(&self.core.reconstruction.mean)?;
-            Ok((Arc::new(d), s))
+            let (d, s) = self.oidn(mean)?;
+            Ok((Arc::clone(mean), Arc::new(d), s))
         });
-        let (denoised, s) = made.as_ref().map_err(Clone::clone)?;
+        let (of, denoised, s) = made.as_ref().map_err(Clone::clone)?;
+        debug_assert!(Arc::ptr_eq(of, mean), "OIDN's image of another mean");
         Ok((Arc::clone(denoised), self.core.reconstruct_seconds + s))
     }
 
     /// `method`'s image denoised by OIDN (`METHOD+oidn`), and the seconds
     /// from the dump.
     pub fn denoised(&self, method: Method) -> Result<(Arc<Image>, f64), OidnError> {
-        if method == Method::Mean {
-            // `mean+oidn` is `oidn`'s image.
-            return self.oidn_mean();
-        }
         let (img, s) = self.image(method)?;
         let (denoised, t) = self.oidn(&img)?;
         Ok((Arc::new(denoised), s + t))

@@ -30,8 +30,8 @@ const FIXED: u64 = 24_000_000;
 const FIXED_OIDN: u64 = 150_000_000;
 /// Bytes more OIDN holds when told its auxiliary images are clean (the
 /// larger network it then runs at high quality), beside [`AUX`] more a
-/// pixel: fitted to the quarter and the whole 1080p frame
-/// (docs/BENCHMARKS.md, "OIDN's auxiliary images at 1080p").
+/// pixel: a bound over what the quarter and the whole 1080p frame
+/// measured (docs/BENCHMARKS.md, "OIDN's auxiliary images at 1080p").
 const FIXED_OIDN_CLEAN: u64 = 130_000_000;
 /// Bytes a pixel costs in the bare run, its pages written: the mean and
 /// filtered images, the occupancy, the reconstruction's sums, the
