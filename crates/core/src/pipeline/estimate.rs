@@ -65,6 +65,9 @@ impl Core {
     }
 }
 
+/// The mean OIDN denoised, its image and OIDN's seconds ([`Shared`]).
+type OidnOfMean = (Arc<Image>, Arc<Image>, f64);
+
 /// Work several estimators share, independent of the configuration.
 pub struct Shared<'a> {
     records: &'a [Record],
@@ -77,7 +80,7 @@ pub struct Shared<'a> {
     /// same one. Unlike the rest, it reads an [`Estimators`]' core: every
     /// Estimators over one Shared must hold the same mean (the run's
     /// cores share its `Arc`; the mean is kept beside the image to check).
-    oidn_mean: OnceLock<Result<(Arc<Image>, Arc<Image>, f64), OidnError>>,
+    oidn_mean: OnceLock<Result<OidnOfMean, OidnError>>,
     /// Channels OIDN's input had non-finite, and negative, set to 0, over
     /// every image denoised.
     oidn_zeroed: [AtomicU64; 2],
