@@ -26,7 +26,7 @@ pub mod summary;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 
 use anyhow::{Context, Result, bail};
 
@@ -190,9 +190,12 @@ pub fn batch(opts: &BatchOptions, progress: &dyn Progress) -> Result<Outcome> {
     progress.set_length(mine.iter().map(|&(_, size)| samples(size)).sum());
     let mut entries: Vec<Entry> = Vec::with_capacity(mine.len());
     for (job, size) in mine {
-        let entry = run_job(job, opts, &protect, &Within::new(progress));
+        let within = Within::new(progress);
+        let entry = run_job(job, opts, &protect, &within);
         if entry.status != Status::Filtered {
-            progress.inc(samples(size));
+            // A skipped or failed dump's samples count once, whatever its
+            // replay counted before it stopped.
+            progress.inc(samples(size).saturating_sub(within.counted()));
         }
         entries.push(entry);
         let n = |s| entries.iter().filter(|e| e.status == s).count();
@@ -321,6 +324,8 @@ fn batch_hash(all: &[Job]) -> String {
 struct Within<'a> {
     batch: &'a dyn Progress,
     replaying: AtomicBool,
+    /// The samples passed on to the batch's bar.
+    counted: AtomicU64,
 }
 
 impl<'a> Within<'a> {
@@ -328,13 +333,19 @@ impl<'a> Within<'a> {
         Within {
             batch,
             replaying: AtomicBool::new(true),
+            counted: AtomicU64::new(0),
         }
+    }
+
+    fn counted(&self) -> u64 {
+        self.counted.load(Relaxed)
     }
 }
 
 impl Progress for Within<'_> {
     fn inc(&self, n: u64) {
         if self.replaying.load(Relaxed) {
+            self.counted.fetch_add(n, Relaxed);
             self.batch.inc(n);
         }
     }
@@ -416,5 +427,37 @@ fn up_to_date(f: &FilterOptions) -> bool {
         (None, None) => true,
         (Some(Ok(now)), Some(then)) => &now == then,
         _ => false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::AtomicU64;
+
+    /// The batch's bar: the samples it was given.
+    #[derive(Default)]
+    struct Bar(AtomicU64);
+
+    impl Progress for Bar {
+        fn inc(&self, n: u64) {
+            self.0.fetch_add(n, Relaxed);
+        }
+    }
+
+    /// A dump's replay counts on the batch's bar and in `counted` (what a
+    /// failed dump's remainder is taken from); its images' stage does not.
+    #[test]
+    fn within_counts_the_replay_only() {
+        let bar = Bar::default();
+        let within = Within::new(&bar);
+        within.set_length(999);
+        within.inc(40);
+        within.inc(60);
+        within.stage("images", 3);
+        within.inc(1);
+        within.finish();
+        assert_eq!(bar.0.load(Relaxed), 100);
+        assert_eq!(within.counted(), 100);
     }
 }
