@@ -67,18 +67,24 @@ pub(crate) fn bands<S>(h: &Header, halo: usize, budget: usize) -> Vec<RowBand> {
 /// second (the odd ones), given to `each(band, folds)` in turn, or the
 /// film's as one band where the dump cannot be read in place
 /// ([`per_pixel::fold_in_bands`]); `accepted(i)` says whether record i
-/// was accepted, `add` is `S`'s update.
+/// was accepted, `add` is `S`'s update. Only the pixels `wanted(px)`
+/// picks are folded; the others' folds stay empty.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn fold_half<S: Default + Clone + Send>(
     records: &[Record],
     h: &Header,
     bands: &[RowBand],
     second: bool,
+    wanted: impl Fn(usize) -> bool + Sync,
     accepted: impl Fn(usize) -> bool + Sync,
     add: impl Fn(&mut S, [f64; 3]) + Sync,
     each: impl FnMut(&RowBand, &[HalfFold<S>]),
 ) {
     let jobs = crate::par::current_num_threads();
-    let item = |i: usize, r: &Record| Some(([r.r as f64, r.g as f64, r.b as f64], accepted(i)));
+    let item = |i: usize, r: &Record| {
+        let colour = [r.r as f64, r.g as f64, r.b as f64];
+        wanted(r.pixel_index(h)).then(|| (colour, accepted(i)))
+    };
     let fold = |f: &mut HalfFold<S>, (x, acc): ([f64; 3], bool)| {
         let mine = (f.seen % 2 == 1) == second;
         f.seen += 1;
@@ -113,6 +119,30 @@ impl Decided {
 
     pub fn is_empty(&self) -> bool {
         self.0.is_empty()
+    }
+
+    /// Per pixel of the film `h`, whether it lies within `r` pixels (each
+    /// way, in its frame) of a decided one.
+    pub fn around(&self, h: &Header, r: usize) -> Vec<bool> {
+        let (w, ht) = (h.width as usize, h.height as usize);
+        let mut flat = vec![0.0; h.pixels() * h.frames as usize];
+        for &px in &self.0 {
+            flat[px] = 1.0;
+        }
+        let sums = window_sums(&flat, w, ht, r);
+        sums.into_par_iter().map(|s| s > 0.0).collect()
+    }
+
+    /// The decided pixels among the film's `pixels`, in their order.
+    pub fn within(&self, pixels: std::ops::Range<usize>) -> &[usize] {
+        let from = self.0.partition_point(|&px| px < pixels.start);
+        let to = self.0.partition_point(|&px| px < pixels.end);
+        &self.0[from..to]
+    }
+
+    /// How many pixels are decided.
+    pub fn len(&self) -> usize {
+        self.0.len()
     }
 
     /// `img`'s decided pixels, in their order, as one row.
@@ -303,7 +333,16 @@ mod tests {
     ) -> Vec<HalfFold<S>> {
         let mut film = Vec::new();
         let keep = |_: &RowBand, folds: &[HalfFold<S>]| film = folds.to_vec();
-        fold_half(records, h, &[RowBand::film(h)], second, accepted, add, keep);
+        fold_half(
+            records,
+            h,
+            &[RowBand::film(h)],
+            second,
+            |_| true,
+            accepted,
+            add,
+            keep,
+        );
         film
     }
 
@@ -417,15 +456,24 @@ mod tests {
                 let mut own = vec![0; film.len()];
                 let mut banded = Interval::empty(&h, 3.0);
                 let mut banded_denoised = Image::for_header(&h);
-                fold_half(&records, &h, &bands, true, accepted, add, |band, folds| {
-                    band.own_of(&mut own).iter_mut().for_each(|n| *n += 1);
-                    let bh = &band.header;
-                    let i = confidence::from_moments_of(folds, |f| &f.all, bh, 3.0);
-                    banded.put(band, &i);
-                    let out = band.own_of(&mut banded_denoised.data);
-                    let g = guide.map(|g| g.of(band.pixels.clone()));
-                    statmc::Window::new(folds, bh, g).denoise_into(bh, band.own.start, out);
-                });
+                fold_half(
+                    &records,
+                    &h,
+                    &bands,
+                    true,
+                    |_| true,
+                    accepted,
+                    add,
+                    |band, folds| {
+                        band.own_of(&mut own).iter_mut().for_each(|n| *n += 1);
+                        let bh = &band.header;
+                        let i = confidence::from_moments_of(folds, |f| &f.all, bh, 3.0);
+                        banded.put(band, &i);
+                        let out = band.own_of(&mut banded_denoised.data);
+                        let g = guide.map(|g| g.of(band.pixels.clone()));
+                        statmc::Window::new(folds, bh, g).denoise_into(bh, band.own.start, out);
+                    },
+                );
                 assert!(own.iter().all(|&n| n == 1));
                 (banded, banded_denoised)
             };
@@ -448,6 +496,99 @@ mod tests {
             let (_, short) = banded(statmc::HALO - 1, None);
             assert_ne!(bits(&short), bits(&denoised));
         }
+    }
+
+    /// A half folded only around the decided pixels (within statmc's
+    /// [`HALO`](statmc::HALO)) gives, at those pixels, the window and the
+    /// intervals of the half folded whole, bit for bit, whether its bands
+    /// are the film or a few rows each: a run of the window longer than
+    /// its runs, scattered pixels, film edges, both frames. One pixel of
+    /// margin less changes them.
+    #[test]
+    fn a_half_folded_around_the_decided_pixels_is_the_whole_halfs_there() {
+        use crate::dump::Order;
+        use crate::recon::confidence;
+        use crate::recon::statmc::{self, Stats};
+        use crate::synth::SynthParams;
+        let synth = SynthParams {
+            width: 300,
+            height: 24,
+            frames: 2,
+            spp: 8,
+            order: Order::PassMajor,
+            firefly_fraction: 0.05,
+            light: Some((40, 10, 4, 40.0)),
+            ..SynthParams::default()
+        };
+        let (h, records): (Header, Vec<Record>) = (synth.header(), synth.records().collect());
+        let film = h.pixels() * 2;
+        let mut px: Vec<usize> = (5 * 300 + 10..5 * 300 + 290).collect();
+        px.extend([0, 299, 23 * 300 + 150, 300 * 24 + 7 * 300 + 3, film - 1]);
+        px.sort();
+        let decided = Decided(px);
+        let accepted = |i: usize| i % 7 != 3;
+        let add = statmc::stats_adder();
+        let whole_film =
+            statmc::Window::new(&whole(&records, &h, false, accepted, add), &h, None).denoise(&h);
+        let half = |wanted: &[bool], budget: usize| {
+            let bands = bands::<Stats>(&h, statmc::HALO, budget);
+            let (mut denoised, mut all) = (Vec::new(), Interval::empty(&h, 3.0));
+            fold_half(
+                &records,
+                &h,
+                &bands,
+                false,
+                |px| wanted[px],
+                accepted,
+                add,
+                |band, folds| {
+                    let first = band.pixels.start;
+                    let own = first + band.own.start..first + band.own.end;
+                    let at: Vec<usize> = decided.within(own).iter().map(|px| px - first).collect();
+                    let window = statmc::Window::new(folds, &band.header, None);
+                    denoised.extend(window.denoise_at(&band.header, &at));
+                    let bh = &band.header;
+                    all.put(
+                        band,
+                        &confidence::from_moments_of(folds, |f| &f.all, bh, 3.0),
+                    );
+                },
+            );
+            let at = decided.interval(&all);
+            let bits =
+                |v: &[[f64; 3]]| -> Vec<u64> { v.iter().flatten().map(|v| v.to_bits()).collect() };
+            (
+                bits(&denoised),
+                bits(&at.centre.data),
+                bits(&at.half_width.data),
+                at.count,
+            )
+        };
+        let everything = half(&vec![true; film], usize::MAX);
+        let at_decided: Vec<[f64; 3]> = decided.0.iter().map(|&px| whole_film.data[px]).collect();
+        let whole_bits: Vec<u64> = at_decided.iter().flatten().map(|v| v.to_bits()).collect();
+        assert_eq!(everything.0, whole_bits);
+        let around = decided.around(&h, statmc::HALO);
+        assert!(around.iter().filter(|&&w| w).count() < film / 2);
+        for budget in [usize::MAX, 2 * 300 * size_of::<HalfFold<Stats>>()] {
+            assert_eq!(half(&around, budget), everything);
+        }
+        let less = decided.around(&h, statmc::HALO - 1);
+        assert_ne!(half(&less, usize::MAX).0, everything.0);
+    }
+
+    /// The pixels around the decided ones are those within r each way in
+    /// their frame.
+    #[test]
+    fn around_stays_in_the_frame() {
+        let h = Header {
+            frames: 2,
+            ..header(5, 4)
+        };
+        let around = Decided(vec![0, 20 + 19]).around(&h, 1);
+        let want: Vec<usize> = vec![0, 1, 5, 6, 20 + 13, 20 + 14, 20 + 18, 20 + 19];
+        let got: Vec<usize> = (0..40).filter(|&px| around[px]).collect();
+        assert_eq!(got, want);
     }
 
     use crate::recon::test_pixel as one;

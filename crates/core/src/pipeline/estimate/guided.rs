@@ -81,13 +81,15 @@ impl Estimators<'_, '_> {
         Ok(())
     }
 
-    /// One half's folds of its samples and of its accepted ones, band by
-    /// band of the film with `halo` rows either side
-    /// ([`held_out::fold_half`]): `each(band, folds)` for each.
+    /// One half's folds of its samples and of its accepted ones at the
+    /// pixels `wanted(px)` picks, band by band of the film with `halo`
+    /// rows either side ([`held_out::fold_half`]): `each(band, folds)`
+    /// for each.
     fn fold_half<S: Default + Clone + Send>(
         &self,
         second: bool,
         halo: usize,
+        wanted: impl Fn(usize) -> bool + Sync,
         add: impl Fn(&mut S, [f64; 3]) + Sync,
         each: impl FnMut(&RowBand, &[HalfFold<S>]),
     ) {
@@ -97,16 +99,18 @@ impl Estimators<'_, '_> {
         let (records, h) = (self.shared.records, self.shared.header);
         let accepted = |i| Decision::accepted(decisions[i]);
         let bands = held_out::bands::<S>(h, halo, held_out::BAND_BYTES);
-        held_out::fold_half(records, h, &bands, second, accepted, add, each);
+        held_out::fold_half(records, h, &bands, second, wanted, accepted, add, each);
     }
 
-    /// One half's intervals of its samples and of its accepted ones, with
-    /// `also(band, folds)` given each band's folds (`halo` rows either
-    /// side, one at least).
+    /// One half's intervals of its samples and of its accepted ones at
+    /// the pixels `wanted(px)` picks (empty elsewhere), with `also(band,
+    /// folds)` given each band's folds (`halo` rows either side, one at
+    /// least).
     fn half_intervals<S: Default + Clone + Send>(
         &self,
         second: bool,
         halo: usize,
+        wanted: impl Fn(usize) -> bool + Sync,
         add: impl Fn(&mut S, [f64; 3]) + Sync,
         accepted_moments: impl Fn(&HalfFold<S>) -> &Moments,
         mut also: impl FnMut(&RowBand, &[HalfFold<S>]),
@@ -114,7 +118,7 @@ impl Estimators<'_, '_> {
         let (h, guide_z) = (self.shared.header, self.config.guide_z);
         let mut all = Interval::empty(h, confidence::Z);
         let mut accepted = Interval::empty(h, guide_z);
-        self.fold_half(second, halo, add, |band, folds| {
+        self.fold_half(second, halo, wanted, add, |band, folds| {
             let bh = &band.header;
             all.put(
                 band,
@@ -130,8 +134,14 @@ impl Estimators<'_, '_> {
     /// `guided_oidn`'s image made from one half's samples alone, kept with
     /// the half's intervals at the `decided` pixels.
     fn guided_oidn_of_half(&self, second: bool, decided: &Decided) -> Result<Half, OidnError> {
-        let (all, accepted) =
-            self.half_intervals(second, 1, Moments::add, |f| &f.accepted, |_, _| {});
+        let (all, accepted) = self.half_intervals(
+            second,
+            1,
+            |_| true,
+            Moments::add,
+            |f| &f.accepted,
+            |_, _| {},
+        );
         // The guide is read at the decided pixels alone, and OIDN, the
         // run's peak, needs only the half's means and counts: the rest of
         // the film's intervals goes before it works.
@@ -148,9 +158,16 @@ impl Estimators<'_, '_> {
         drop((half_width, own_se));
         let d = imagespace::oidn::denoise(&centre, &count, self.aux)?;
         drop((centre, count));
+        Ok(self.steered_half(&decided.image(&d.image), &at, &floors))
+    }
+
+    /// A half's `denoised` image at the decided pixels, in their order,
+    /// steered by its intervals there: `at` of all its samples, `floors`
+    /// those of its accepted ones ([`guided::guide_from`]).
+    fn steered_half(&self, denoised: &Image, at: &Interval, floors: &Image) -> Half {
         let white = 1.0 / self.config.exposure;
-        let g = guided::guide_from(&decided.image(&d.image), |i| floors.data[i], &at, white);
-        Ok(Half::new(&g, &at))
+        let g = guided::guide_from(denoised, |i| floors.data[i], at, white);
+        Half::new(&g, at)
     }
 
     /// `guided`'s image of statmc's `denoised`: the energy the filter
@@ -180,38 +197,44 @@ impl Estimators<'_, '_> {
         g
     }
 
-    /// `guided`'s image made from one half's samples alone, kept with the
-    /// half's intervals at the `decided` pixels. Its filtered value is the
-    /// mean of its accepted samples (the half's mean where it has none: no
-    /// median fallback).
+    /// `guided`'s image made from one half's samples alone at the
+    /// `decided` pixels, kept with the half's intervals there: statmc of
+    /// the half's accepted samples steered by those intervals
+    /// ([`guided::guide`]). The removed energy's spread and the blocks,
+    /// which read far across the film, are left out: at the pixels decided
+    /// they moved the decision by little (docs/RESULTS.md, "The guided
+    /// image"), and without them only the pixels statmc's window reads
+    /// there are folded, and the window made there alone.
     fn guided_of_half(&self, second: bool, decided: &Decided) -> Half {
         let h = self.shared.header;
-        let mut denoised = Image::for_header(h);
-        // statmc's window of each band's own rows, from the band's folds.
+        let wanted = decided.around(h, statmc::HALO);
         let guide = self.guide();
+        let mut denoised = Vec::with_capacity(decided.len());
         let denoise = |band: &RowBand, folds: &[HalfFold<Stats>]| {
-            let first = band.own.start;
+            let first = band.pixels.start;
+            let own = first + band.own.start..first + band.own.end;
+            let at: Vec<usize> = decided.within(own).iter().map(|px| px - first).collect();
             let g = guide.map(|g| g.of(band.pixels.clone()));
             let window = statmc::Window::new(folds, &band.header, g);
-            window.denoise_into(&band.header, first, band.own_of(&mut denoised.data));
+            denoised.extend(window.denoise_at(&band.header, &at));
         };
         let add = statmc::stats_adder();
-        let (all, accepted) =
-            self.half_intervals(second, statmc::HALO, add, |f| f.accepted.as_ref(), denoise);
-        let removed = energy::removed_by(&all.centre, |px| match accepted.count[px] {
-            0 => all.centre.data[px],
-            _ => accepted.centre.data[px],
-        });
-        let mut with_energy = denoised;
-        energy::spread_into(
-            &mut with_energy,
-            &removed,
-            &all.count,
-            self.config.energy_sigma,
+        let (all, accepted) = self.half_intervals(
+            second,
+            statmc::HALO,
+            |px| wanted[px],
+            add,
+            |f| f.accepted.as_ref(),
+            denoise,
         );
-        drop(removed);
-        let g = self.guided_statmc_of(with_energy, &accepted, &all);
-        Half::new(&decided.image(&g), &decided.interval(&all))
+        let denoised = Image {
+            width: denoised.len(),
+            height: 1,
+            frames: 1,
+            data: denoised,
+        };
+        let floors = decided.map(|px| guided::floor(&accepted, px));
+        self.steered_half(&denoised, &decided.interval(&all), &floors)
     }
 }
 

@@ -67,7 +67,7 @@ pub use features::{ALBEDO_SD, Guide, NORMAL_SD};
 mod avx2;
 
 use fields::Fields;
-use run::window;
+use run::{window, window_at};
 use welch::Kernel;
 
 /// One pixel's statistics: the moments of its samples, which the
@@ -165,6 +165,14 @@ impl Window {
     pub(crate) fn denoise_into(&self, h: &Header, first: usize, out: &mut [[f64; 3]]) {
         let kernel = Kernel::new(self.fields.n.iter().copied().max().unwrap_or(0));
         window(&self.fields, &kernel, h, first, out);
+    }
+
+    /// The denoised values at `pixels` of the film `h` (ascending), in
+    /// their order: each one [`Window::denoise`]'s. Only the statistics of
+    /// the pixels within [`HALO`] of them are read.
+    pub(crate) fn denoise_at(&self, h: &Header, pixels: &[usize]) -> Vec<[f64; 3]> {
+        let kernel = Kernel::new(self.fields.n.iter().copied().max().unwrap_or(0));
+        window_at(&self.fields, &kernel, h, pixels)
     }
 }
 

@@ -33,6 +33,49 @@ pub(super) fn window(
         });
 }
 
+/// The mean of its window's compatible pixels at each of `pixels`
+/// (ascending), in their order: each pixel's the same bits as
+/// [`window`]'s, whatever the run it is taken in.
+pub(super) fn window_at(
+    fields: &Fields,
+    kernel: &Kernel,
+    h: &Header,
+    pixels: &[usize],
+) -> Vec<[f64; 3]> {
+    let (w, ht) = (h.width as usize, h.height as usize);
+    let mut out = vec![[0.0; 3]; pixels.len()];
+    // Runs of consecutive pixels of one row, RUN at most.
+    let mut runs: Vec<(Run, &mut [[f64; 3]])> = Vec::new();
+    let (mut rest, mut i) = (&mut out[..], 0);
+    while i < pixels.len() {
+        let (row, x) = (pixels[i] / w, pixels[i] % w);
+        let mut len = 1;
+        while i + len < pixels.len()
+            && pixels[i + len] == pixels[i] + len
+            && x + len < w
+            && len < RUN
+        {
+            len += 1;
+        }
+        let (mine, tail) = rest.split_at_mut(len);
+        let (base, y) = ((row / ht) * w * ht, row % ht);
+        runs.push((
+            Run {
+                w,
+                ht,
+                base,
+                y,
+                xs: x..x + len,
+            },
+            mine,
+        ));
+        (rest, i) = (tail, i + len);
+    }
+    runs.into_par_iter()
+        .for_each(|(run, out)| window_run(fields, kernel, &run, out));
+    out
+}
+
 /// Pixels per run of a row that the window takes at once: the run's
 /// fields and its neighbours' stay in the core's cache over the window's
 /// (2R + 1)² offsets.
