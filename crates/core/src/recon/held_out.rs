@@ -67,15 +67,15 @@ pub(crate) fn bands<S>(h: &Header, halo: usize, budget: usize) -> Vec<RowBand> {
 /// second (the odd ones), given to `each(band, folds)` in turn, or the
 /// film's as one band where the dump cannot be read in place
 /// ([`per_pixel::fold_in_bands`]); `accepted(i)` says whether record i
-/// was accepted, `add` is `S`'s update. Only the pixels `wanted(px)`
-/// picks are folded; the others' folds stay empty.
+/// was accepted, `add` is `S`'s update. Only the pixels `wanted` marks
+/// are folded (all where it is None); the others' folds stay empty.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn fold_half<S: Default + Clone + Send>(
     records: &[Record],
     h: &Header,
     bands: &[RowBand],
     second: bool,
-    wanted: impl Fn(usize) -> bool + Sync,
+    wanted: Option<&[bool]>,
     accepted: impl Fn(usize) -> bool + Sync,
     add: impl Fn(&mut S, [f64; 3]) + Sync,
     each: impl FnMut(&RowBand, &[HalfFold<S>]),
@@ -83,7 +83,8 @@ pub(crate) fn fold_half<S: Default + Clone + Send>(
     let jobs = crate::par::current_num_threads();
     let item = |i: usize, r: &Record| {
         let colour = [r.r as f64, r.g as f64, r.b as f64];
-        wanted(r.pixel_index(h)).then(|| (colour, accepted(i)))
+        let picked = wanted.is_none_or(|w| w[r.pixel_index(h)]);
+        picked.then(|| (colour, accepted(i)))
     };
     let fold = |f: &mut HalfFold<S>, (x, acc): ([f64; 3], bool)| {
         let mine = (f.seen % 2 == 1) == second;
@@ -338,7 +339,7 @@ mod tests {
             h,
             &[RowBand::film(h)],
             second,
-            |_| true,
+            None,
             accepted,
             add,
             keep,
@@ -461,7 +462,7 @@ mod tests {
                     &h,
                     &bands,
                     true,
-                    |_| true,
+                    None,
                     accepted,
                     add,
                     |band, folds| {
@@ -502,7 +503,8 @@ mod tests {
     /// [`HALO`](statmc::HALO)) gives, at those pixels, the window and the
     /// intervals of the half folded whole, bit for bit, whether its bands
     /// are the film or a few rows each: a run of the window longer than
-    /// its runs, scattered pixels, film edges, both frames. One pixel of
+    /// its runs, pixels near enough to share one, scattered pixels, film
+    /// edges, both frames. One pixel of
     /// margin less changes them.
     #[test]
     fn a_half_folded_around_the_decided_pixels_is_the_whole_halfs_there() {
@@ -523,7 +525,8 @@ mod tests {
         let (h, records): (Header, Vec<Record>) = (synth.header(), synth.records().collect());
         let film = h.pixels() * 2;
         let mut px: Vec<usize> = (5 * 300 + 10..5 * 300 + 290).collect();
-        px.extend([0, 299, 23 * 300 + 150, 300 * 24 + 7 * 300 + 3, film - 1]);
+        px.extend([0, 299, 23 * 300 + 150, 23 * 300 + 160, 23 * 300 + 192]);
+        px.extend([300 * 24 + 7 * 300 + 3, film - 1]);
         px.sort();
         let decided = Decided(px);
         let accepted = |i: usize| i % 7 != 3;
@@ -538,7 +541,7 @@ mod tests {
                 &h,
                 &bands,
                 false,
-                |px| wanted[px],
+                Some(wanted),
                 accepted,
                 add,
                 |band, folds| {

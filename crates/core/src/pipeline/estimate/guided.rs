@@ -82,14 +82,14 @@ impl Estimators<'_, '_> {
     }
 
     /// One half's folds of its samples and of its accepted ones at the
-    /// pixels `wanted(px)` picks, band by band of the film with `halo`
+    /// pixels `wanted` marks (all where None), band by band of the film with `halo`
     /// rows either side ([`held_out::fold_half`]): `each(band, folds)`
     /// for each.
     fn fold_half<S: Default + Clone + Send>(
         &self,
         second: bool,
         halo: usize,
-        wanted: impl Fn(usize) -> bool + Sync,
+        wanted: Option<&[bool]>,
         add: impl Fn(&mut S, [f64; 3]) + Sync,
         each: impl FnMut(&RowBand, &[HalfFold<S>]),
     ) {
@@ -103,14 +103,14 @@ impl Estimators<'_, '_> {
     }
 
     /// One half's intervals of its samples and of its accepted ones at
-    /// the pixels `wanted(px)` picks (empty elsewhere), with `also(band,
+    /// the pixels `wanted` marks (all where None; empty elsewhere), with `also(band,
     /// folds)` given each band's folds (`halo` rows either side, one at
     /// least).
     fn half_intervals<S: Default + Clone + Send>(
         &self,
         second: bool,
         halo: usize,
-        wanted: impl Fn(usize) -> bool + Sync,
+        wanted: Option<&[bool]>,
         add: impl Fn(&mut S, [f64; 3]) + Sync,
         accepted_moments: impl Fn(&HalfFold<S>) -> &Moments,
         mut also: impl FnMut(&RowBand, &[HalfFold<S>]),
@@ -134,14 +134,8 @@ impl Estimators<'_, '_> {
     /// `guided_oidn`'s image made from one half's samples alone, kept with
     /// the half's intervals at the `decided` pixels.
     fn guided_oidn_of_half(&self, second: bool, decided: &Decided) -> Result<Half, OidnError> {
-        let (all, accepted) = self.half_intervals(
-            second,
-            1,
-            |_| true,
-            Moments::add,
-            |f| &f.accepted,
-            |_, _| {},
-        );
+        let (all, accepted) =
+            self.half_intervals(second, 1, None, Moments::add, |f| &f.accepted, |_, _| {});
         // The guide is read at the decided pixels alone, and OIDN, the
         // run's peak, needs only the half's means and counts: the rest of
         // the film's intervals goes before it works.
@@ -208,6 +202,7 @@ impl Estimators<'_, '_> {
     fn guided_of_half(&self, second: bool, decided: &Decided) -> Half {
         let h = self.shared.header;
         let wanted = decided.around(h, statmc::HALO);
+        let wanted = (!wanted.iter().all(|&w| w)).then_some(&wanted[..]);
         let guide = self.guide();
         let mut denoised = Vec::with_capacity(decided.len());
         let denoise = |band: &RowBand, folds: &[HalfFold<Stats>]| {
@@ -222,7 +217,7 @@ impl Estimators<'_, '_> {
         let (all, accepted) = self.half_intervals(
             second,
             statmc::HALO,
-            |px| wanted[px],
+            wanted,
             add,
             |f| f.accepted.as_ref(),
             denoise,

@@ -35,7 +35,9 @@ pub(super) fn window(
 
 /// The mean of its window's compatible pixels at each of `pixels`
 /// (ascending), in their order: each pixel's the same bits as
-/// [`window`]'s, whatever the run it is taken in.
+/// [`window`]'s, whatever the run it is taken in. Pixels of a row fewer
+/// than [`GAP`] apart are taken in one run, the pixels between them made
+/// and dropped.
 pub(super) fn window_at(
     fields: &Fields,
     kernel: &Kernel,
@@ -44,37 +46,40 @@ pub(super) fn window_at(
 ) -> Vec<[f64; 3]> {
     let (w, ht) = (h.width as usize, h.height as usize);
     let mut out = vec![[0.0; 3]; pixels.len()];
-    // Runs of consecutive pixels of one row, RUN at most.
-    let mut runs: Vec<(Run, &mut [[f64; 3]])> = Vec::new();
+    // Runs of a row, RUN pixels at most, each with the pixels it gives.
+    let mut runs: Vec<(Run, &[usize], &mut [[f64; 3]])> = Vec::new();
     let (mut rest, mut i) = (&mut out[..], 0);
     while i < pixels.len() {
         let (row, x) = (pixels[i] / w, pixels[i] % w);
         let mut len = 1;
-        while i + len < pixels.len()
-            && pixels[i + len] == pixels[i] + len
-            && x + len < w
-            && len < RUN
-        {
+        while let Some(&next) = pixels.get(i + len) {
+            let end = next - row * w;
+            if next / w != row || end - pixels[i + len - 1] % w > GAP || end >= x + RUN {
+                break;
+            }
             len += 1;
         }
         let (mine, tail) = rest.split_at_mut(len);
         let (base, y) = ((row / ht) * w * ht, row % ht);
-        runs.push((
-            Run {
-                w,
-                ht,
-                base,
-                y,
-                xs: x..x + len,
-            },
-            mine,
-        ));
+        let xs = x..pixels[i + len - 1] % w + 1;
+        runs.push((Run { w, ht, base, y, xs }, &pixels[i..i + len], mine));
         (rest, i) = (tail, i + len);
     }
-    runs.into_par_iter()
-        .for_each(|(run, out)| window_run(fields, kernel, &run, out));
+    runs.into_par_iter().for_each(|(run, pixels, out)| {
+        let mut all = vec![[0.0; 3]; run.xs.len()];
+        window_run(fields, kernel, &run, &mut all);
+        let first = run.base + run.y * run.w + run.xs.start;
+        for (o, &px) in out.iter_mut().zip(pixels) {
+            *o = all[px - first];
+        }
+    });
     out
 }
+
+/// Pixels of a row this far apart or nearer are taken in one run of
+/// [`window_at`]: each run starts (2R + 1)² offsets, which costs about
+/// as much as this many pixels more of the run.
+const GAP: usize = 32;
 
 /// Pixels per run of a row that the window takes at once: the run's
 /// fields and its neighbours' stay in the core's cache over the window's
