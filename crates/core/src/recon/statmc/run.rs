@@ -45,10 +45,9 @@ pub(super) fn window_at(
     pixels: &[usize],
 ) -> Vec<[f64; 3]> {
     let (w, ht) = (h.width as usize, h.height as usize);
-    let mut out = vec![[0.0; 3]; pixels.len()];
     // Runs of a row, RUN pixels at most, each with the pixels it gives.
-    let mut runs: Vec<(Run, &[usize], &mut [[f64; 3]])> = Vec::new();
-    let (mut rest, mut i) = (&mut out[..], 0);
+    let mut runs: Vec<(Run, &[usize])> = Vec::new();
+    let mut i = 0;
     while i < pixels.len() {
         let (row, x) = (pixels[i] / w, pixels[i] % w);
         let mut len = 1;
@@ -59,21 +58,21 @@ pub(super) fn window_at(
             }
             len += 1;
         }
-        let (mine, tail) = rest.split_at_mut(len);
         let (base, y) = ((row / ht) * w * ht, row % ht);
         let xs = x..pixels[i + len - 1] % w + 1;
-        runs.push((Run { w, ht, base, y, xs }, &pixels[i..i + len], mine));
-        (rest, i) = (tail, i + len);
+        runs.push((Run { w, ht, base, y, xs }, &pixels[i..i + len]));
+        i += len;
     }
-    runs.into_par_iter().for_each(|(run, pixels, out)| {
-        let mut all = vec![[0.0; 3]; run.xs.len()];
-        window_run(fields, kernel, &run, &mut all);
-        let first = run.base + run.y * run.w + run.xs.start;
-        for (o, &px) in out.iter_mut().zip(pixels) {
-            *o = all[px - first];
-        }
-    });
-    out
+    let given: Vec<Vec<[f64; 3]>> = runs
+        .into_par_iter()
+        .map(|(run, pixels)| {
+            let mut all = vec![[0.0; 3]; run.xs.len()];
+            window_run(fields, kernel, &run, &mut all);
+            let first = run.base + run.y * run.w + run.xs.start;
+            pixels.iter().map(|px| all[px - first]).collect()
+        })
+        .collect();
+    given.concat()
 }
 
 /// Pixels of a row this far apart or nearer are taken in one run of
