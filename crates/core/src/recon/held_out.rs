@@ -134,11 +134,25 @@ impl Decided {
         sums.into_par_iter().map(|s| s > 0.0).collect()
     }
 
-    /// The decided pixels among the film's `pixels`, in their order.
-    pub fn within(&self, pixels: std::ops::Range<usize>) -> &[usize] {
-        let from = self.0.partition_point(|&px| px < pixels.start);
-        let to = self.0.partition_point(|&px| px < pixels.end);
-        &self.0[from..to]
+    /// statmc's window of a band's `folds` (with `guide`, the band's
+    /// share of the renderer's features) at the decided pixels of the
+    /// band's own rows, each written to its place in `out` (one per
+    /// decided pixel, in their order): a band given again, as the film
+    /// after bands that were read in place, writes the same places.
+    pub(crate) fn window_at(
+        &self,
+        band: &RowBand,
+        folds: &[HalfFold<Stats>],
+        guide: Option<super::statmc::Guide>,
+        out: &mut [[f64; 3]],
+    ) {
+        let first = band.pixels.start;
+        let own = first + band.own.start..first + band.own.end;
+        let from = self.0.partition_point(|&px| px < own.start);
+        let to = self.0.partition_point(|&px| px < own.end);
+        let at: Vec<usize> = self.0[from..to].iter().map(|px| px - first).collect();
+        let window = super::statmc::Window::new(folds, &band.header, guide);
+        out[from..to].copy_from_slice(&window.denoise_at(&band.header, &at));
     }
 
     /// How many pixels are decided.
@@ -502,7 +516,7 @@ mod tests {
     /// A half folded only around the decided pixels (within statmc's
     /// [`HALO`](statmc::HALO)) gives, at those pixels, the window and the
     /// intervals of the half folded whole, bit for bit, whether its bands
-    /// are the film or a few rows each: a run of the window longer than
+    /// are the film, a frame or a few rows each: a run of the window longer than
     /// its runs, pixels near enough to share one, scattered pixels, film
     /// edges, both frames. One pixel of
     /// margin less changes them.
@@ -533,23 +547,19 @@ mod tests {
         let add = statmc::stats_adder();
         let whole_film =
             statmc::Window::new(&whole(&records, &h, false, accepted, add), &h, None).denoise(&h);
-        let half = |wanted: &[bool], budget: usize| {
-            let bands = bands::<Stats>(&h, statmc::HALO, budget);
-            let (mut denoised, mut all) = (Vec::new(), Interval::empty(&h, 3.0));
+        let half = |wanted: &[bool], bands: &[RowBand]| {
+            let mut denoised = vec![[0.0; 3]; decided.len()];
+            let mut all = Interval::empty(&h, 3.0);
             fold_half(
                 &records,
                 &h,
-                &bands,
+                bands,
                 false,
                 Some(wanted),
                 accepted,
                 add,
                 |band, folds| {
-                    let first = band.pixels.start;
-                    let own = first + band.own.start..first + band.own.end;
-                    let at: Vec<usize> = decided.within(own).iter().map(|px| px - first).collect();
-                    let window = statmc::Window::new(folds, &band.header, None);
-                    denoised.extend(window.denoise_at(&band.header, &at));
+                    decided.window_at(band, folds, None, &mut denoised);
                     let bh = &band.header;
                     all.put(
                         band,
@@ -567,17 +577,21 @@ mod tests {
                 at.count,
             )
         };
-        let everything = half(&vec![true; film], usize::MAX);
+        let film_band = [RowBand::film(&h)];
+        let everything = half(&vec![true; film], &film_band);
         let at_decided: Vec<[f64; 3]> = decided.0.iter().map(|&px| whole_film.data[px]).collect();
         let whole_bits: Vec<u64> = at_decided.iter().flatten().map(|v| v.to_bits()).collect();
         assert_eq!(everything.0, whole_bits);
         let around = decided.around(&h, statmc::HALO);
         assert!(around.iter().filter(|&&w| w).count() < film / 2);
         for budget in [usize::MAX, 2 * 300 * size_of::<HalfFold<Stats>>()] {
-            assert_eq!(half(&around, budget), everything);
+            let bands = bands::<Stats>(&h, statmc::HALO, budget);
+            assert!(bands.len() >= 2);
+            assert_eq!(half(&around, &bands), everything);
         }
+        assert_eq!(half(&around, &film_band), everything);
         let less = decided.around(&h, statmc::HALO - 1);
-        assert_ne!(half(&less, usize::MAX).0, everything.0);
+        assert_ne!(half(&less, &film_band).0, everything.0);
     }
 
     /// The pixels around the decided ones are those within r each way in

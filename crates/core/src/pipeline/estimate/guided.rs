@@ -204,14 +204,10 @@ impl Estimators<'_, '_> {
         let wanted = decided.around(h, statmc::HALO);
         let wanted = (!wanted.iter().all(|&w| w)).then_some(&wanted[..]);
         let guide = self.guide();
-        let mut denoised = Vec::with_capacity(decided.len());
+        let mut denoised = vec![[0.0; 3]; decided.len()];
         let denoise = |band: &RowBand, folds: &[HalfFold<Stats>]| {
-            let first = band.pixels.start;
-            let own = first + band.own.start..first + band.own.end;
-            let at: Vec<usize> = decided.within(own).iter().map(|px| px - first).collect();
             let g = guide.map(|g| g.of(band.pixels.clone()));
-            let window = statmc::Window::new(folds, &band.header, g);
-            denoised.extend(window.denoise_at(&band.header, &at));
+            decided.window_at(band, folds, g, &mut denoised);
         };
         let add = statmc::stats_adder();
         let (all, accepted) = self.half_intervals(
@@ -249,7 +245,8 @@ mod tests {
     /// as the same records in no declared order, whose halves are folded
     /// whole: the bands' halos, their own rows and statmc's window on each
     /// are the film's. A light makes white pixels, fireflies rejected
-    /// samples.
+    /// samples. So does a record out of its place in a late band, after
+    /// which the halves fold the film whole, some bands already given.
     #[test]
     fn banded_halves_make_the_films_image() {
         let synth = SynthParams {
@@ -264,7 +261,7 @@ mod tests {
         let (h, records): (Header, Vec<Record>) = (synth.header(), synth.records().collect());
         let bands = held_out::bands::<statmc::Stats>(&h, statmc::HALO, held_out::BAND_BYTES);
         assert!(bands.len() > 10);
-        let image = |h: &Header| {
+        let image = |records: &[Record], h: &Header| {
             let options = RunOptions {
                 threads: 2,
                 exact_sigma: ExactSigma::None,
@@ -272,7 +269,7 @@ mod tests {
                 progress: &Silent,
                 aux: None,
             };
-            let run = pipeline::run(&records, h, &FilterConfig::DEFAULT, &options).unwrap();
+            let run = pipeline::run(records, h, &FilterConfig::DEFAULT, &options).unwrap();
             let img = run.image(Method::Guided).unwrap();
             let bits: Vec<u64> = img.data.iter().flatten().map(|v| v.to_bits()).collect();
             bits
@@ -281,6 +278,10 @@ mod tests {
             order: Order::Unspecified,
             ..h.clone()
         };
-        assert_eq!(image(&h), image(&scan));
+        assert_eq!(image(&records, &h), image(&records, &scan));
+        // Pass 2's sample of pixel (3, 35) lies in pixel (10, 35).
+        let mut misplaced = records.clone();
+        misplaced[2 * 24 * 40 + 35 * 24 + 3].x = 10.5;
+        assert_eq!(image(&misplaced, &h), image(&misplaced, &scan));
     }
 }

@@ -168,8 +168,8 @@ impl Window {
     }
 
     /// The denoised values at `pixels` of the film `h` (ascending), in
-    /// their order: each one [`Window::denoise`]'s. Only the statistics of
-    /// the pixels within [`HALO`] of them are read.
+    /// their order: each one [`Window::denoise`]'s, which depends only on
+    /// the statistics of the pixels within [`HALO`] of it.
     pub(crate) fn denoise_at(&self, h: &Header, pixels: &[usize]) -> Vec<[f64; 3]> {
         let kernel = Kernel::new(self.fields.n.iter().copied().max().unwrap_or(0));
         window_at(&self.fields, &kernel, h, pixels)

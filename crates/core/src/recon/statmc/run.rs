@@ -35,9 +35,9 @@ pub(super) fn window(
 
 /// The mean of its window's compatible pixels at each of `pixels`
 /// (ascending), in their order: each pixel's the same bits as
-/// [`window`]'s, whatever the run it is taken in. Pixels of a row fewer
-/// than [`GAP`] apart are taken in one run, the pixels between them made
-/// and dropped.
+/// [`window`]'s, whatever the run it is taken in. Pixels of a row
+/// [`GAP`] or fewer apart are taken in one run, the pixels between them
+/// made and dropped.
 pub(super) fn window_at(
     fields: &Fields,
     kernel: &Kernel,
