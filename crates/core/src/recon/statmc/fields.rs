@@ -73,6 +73,33 @@ impl Fields {
     }
 }
 
+impl Fields {
+    /// The patch test's terms of the pair (p, q) (F11): Σ_c (ȳ_p,c − ȳ_q,c)²
+    /// and the two spreads' sum S_p + S_q, where both have two samples or
+    /// more; none otherwise.
+    #[cfg(test)]
+    pub(super) fn patch_term(&self, p: usize, q: usize) -> Option<(f64, f64)> {
+        if self.n[p] < 2 || self.n[q] < 2 {
+            return None;
+        }
+        let d = |c: usize| self.y_mean[c][p] - self.y_mean[c][q];
+        let (d0, d1, d2) = (d(0), d(1), d(2));
+        Some((
+            (d0 * d0 + d1 * d1) + d2 * d2,
+            self.spread[p] + self.spread[q],
+        ))
+    }
+}
+
+/// Whether a patch whose `m` pairs (of two samples or more each) sum to
+/// `a` (their squared differences) and `b` (their spreads) passes: the
+/// transformed means differ by no more than the χ² bound at
+/// [`PATCH_ALPHA`](super::PATCH_ALPHA) allows, pooled over the patch.
+#[inline(always)]
+pub(super) fn patch_passes(k: &Kernel, a: f64, b: f64, m: f64) -> bool {
+    m > 0.0 && a <= k.patch[m as usize] * b
+}
+
 /// Per pixel, the largest spread a pixel it averages with may have:
 /// [`NOISIER`] × the larger of the pixel's spread and the median spread of
 /// its 3 × 3 neighbourhood (same frame, pixels with two samples or more).

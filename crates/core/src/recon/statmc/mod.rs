@@ -45,8 +45,13 @@ use crate::dump::{Header, Record};
 pub const RADIUS: usize = 8;
 /// Box-Cox λ.
 const LAMBDA: f64 = 0.5;
-/// Two-sided significance of the test.
-const ALPHA: f64 = 0.05;
+/// Two-sided significance of the pixels' own test.
+const ALPHA: f64 = 0.001;
+/// The patches' width: each pixel's test is made again over the pairs of
+/// the PATCH × PATCH pixels around the two.
+const PATCH: usize = 3;
+/// Upper-tail significance of the patch test.
+const PATCH_ALPHA: f64 = 0.001;
 /// Two pixels average each other only when neither's s²/n exceeds this
 /// many times the other's (or the other's neighbourhood median): standard
 /// errors within 4× (docs/RESULTS.md, "The guided image").
@@ -342,6 +347,32 @@ mod tests {
             "the albedo keeps it: {}",
             step(&guided)
         );
+    }
+
+    /// Two regions 30 % apart at 8 samples a pixel: a pair of pixels
+    /// across the edge is about 2.6 standard errors apart, which the
+    /// pixels' own test at α = 0.001 passes, and their patches, nine
+    /// such pairs and more, do not: the edge stays.
+    #[test]
+    fn the_patches_keep_an_edge_the_pixels_own_test_passes() {
+        let (w, ht) = (24, 12);
+        let h = test_header(w as u32, ht as u32);
+        let mut unit = crate::synth::test_units(5);
+        let mut recs = Vec::new();
+        for y in 0..ht {
+            for x in 0..w {
+                let level = if x < w / 2 { 1.0 } else { 1.3 };
+                for _ in 0..8 {
+                    let v = level * (0.6 + 0.8 * unit() as f32);
+                    recs.push(Record::new(x as f32 + 0.5, y as f32 + 0.5, 0.0, [v; 3]));
+                }
+            }
+        }
+        let img = denoise(&recs, &h, |_| true, None);
+        // Each column's mean over the rows.
+        let column = |x: usize| (0..ht).map(|y| img.data[y * w + x][0]).sum::<f64>() / ht as f64;
+        let (left, right) = (column(w / 2 - 1), column(w / 2));
+        assert!(right - left > 0.2, "{left} {right}");
     }
 
     /// An outlier the caller leaves out does not move its pixel.

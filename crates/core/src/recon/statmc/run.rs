@@ -2,11 +2,11 @@
 //! each offset of the window for the whole run, the pairs decided four at
 //! a time in vector registers where the CPU has them.
 
-use super::RADIUS;
 #[cfg(target_arch = "x86_64")]
 use super::avx2;
-use super::fields::Fields;
+use super::fields::{Fields, patch_passes};
 use super::welch::{Kernel, MARGIN, TINY};
+use super::{PATCH, RADIUS};
 use crate::dump::Header;
 use crate::par::prelude::*;
 
@@ -20,15 +20,32 @@ pub(super) fn window(
     out: &mut [[f64; 3]],
 ) {
     let (w, ht) = (h.width as usize, h.height as usize);
-    out.par_chunks_mut(w.max(1))
+    out.par_chunks_mut((w * BLOCK).max(1))
         .enumerate()
-        .for_each(|(r, out)| {
-            let row = first / w.max(1) + r;
-            let (base, y) = ((row / ht) * w * ht, row % ht);
-            for (r, out) in out.chunks_mut(RUN).enumerate() {
-                let xs = r * RUN..r * RUN + out.len();
-                let run = Run { w, ht, base, y, xs };
-                window_run(fields, kernel, &run, out);
+        .for_each(|(b, out)| {
+            let mut row = first / w.max(1) + b * BLOCK;
+            let mut out = out;
+            while !out.is_empty() {
+                // The block's rows of one frame.
+                let (base, y) = ((row / ht) * w * ht, row % ht);
+                let rows = (ht - y).min(out.len() / w);
+                let (mine, rest) = out.split_at_mut(rows * w);
+                for x in (0..w).step_by(RUN) {
+                    let xs = x..(x + RUN).min(w);
+                    let run = Run {
+                        w,
+                        ht,
+                        base,
+                        ys: y..y + rows,
+                        xs: xs.clone(),
+                    };
+                    let mut block = vec![[0.0; 3]; rows * xs.len()];
+                    window_run(fields, kernel, &run, &mut block);
+                    for (r, values) in block.chunks(xs.len()).enumerate() {
+                        mine[r * w + xs.start..r * w + xs.end].copy_from_slice(values);
+                    }
+                }
+                (out, row) = (rest, row + rows);
             }
         });
 }
@@ -60,7 +77,17 @@ pub(super) fn window_at(
         }
         let (base, y) = ((row / ht) * w * ht, row % ht);
         let xs = x..pixels[i + len - 1] % w + 1;
-        runs.push((Run { w, ht, base, y, xs }, &pixels[i..i + len]));
+        let ys = y..y + 1;
+        runs.push((
+            Run {
+                w,
+                ht,
+                base,
+                ys,
+                xs,
+            },
+            &pixels[i..i + len],
+        ));
         i += len;
     }
     let given: Vec<Vec<[f64; 3]>> = runs
@@ -68,7 +95,7 @@ pub(super) fn window_at(
         .map(|(run, pixels)| {
             let mut all = vec![[0.0; 3]; run.xs.len()];
             window_run(fields, kernel, &run, &mut all);
-            let first = run.base + run.y * run.w + run.xs.start;
+            let first = run.base + run.ys.start * run.w + run.xs.start;
             pixels.iter().map(|px| all[px - first]).collect()
         })
         .collect();
@@ -85,23 +112,29 @@ const GAP: usize = 32;
 /// (2R + 1)² offsets.
 const RUN: usize = 256;
 
-/// Pixels `xs` of row y of the frame whose first pixel is `base`, on a
-/// w × ht film.
+/// Rows [`window`] takes at once: the patch test's terms of an offset
+/// are made once for the block's rows and the two beside them, where a
+/// row alone makes three rows of them.
+const BLOCK: usize = 8;
+
+/// Pixels `xs` of rows `ys` of the frame whose first pixel is `base`, on
+/// a w × ht film.
 struct Run {
     w: usize,
     ht: usize,
     base: usize,
-    y: usize,
+    ys: std::ops::Range<usize>,
     xs: std::ops::Range<usize>,
 }
 
-/// The output of the pixels of `run`, into `out`: each pixel's mean of its
-/// compatible neighbours, weighted by sample count, the spatial Gaussian
-/// and the features' weight where there is a guide. The window is taken offset by offset in its order (row by
-/// row, left to right), each offset for the whole run, so each pixel's
-/// sums add the same terms in the same order as a loop over its own
-/// window; a neighbour left out adds 0, which changes no sum (a sum that
-/// starts at +0 is never −0, and a mean is finite).
+/// The output of the pixels of `run`, into `out` (row by row): each
+/// pixel's mean of its compatible neighbours, weighted by sample count,
+/// the spatial Gaussian and the features' weight where there is a guide.
+/// The window is taken offset by offset in its order (row by row, left to
+/// right), each offset for the whole run, so each pixel's sums add the
+/// same terms in the same order as a loop over its own window; a
+/// neighbour left out adds 0, which changes no sum (a sum that starts at
+/// +0 is never −0, and a mean is finite).
 fn window_run(f: &Fields, k: &Kernel, run: &Run, out: &mut [[f64; 3]]) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
@@ -125,15 +158,17 @@ fn window_run_portable(f: &Fields, k: &Kernel, run: &Run, out: &mut [[f64; 3]]) 
         w,
         ht,
         base,
-        y,
+        ref ys,
         ref xs,
     } = *run;
-    let mut sum = [[0.0f64; RUN]; 3];
-    let mut weight = [0.0f64; RUN];
+    let rows = ys.len();
+    let mut sum = vec![[[0.0f64; RUN]; 3]; rows];
+    let mut weight = vec![[0.0f64; RUN]; rows];
     let mut weights = [0.0f64; RUN];
+    let mut patches = Patches::new(rows);
     let r = RADIUS as isize;
-    for ny in y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(ht) {
-        let wy = k.spatial[ny.abs_diff(y)];
+    for dy in -r..=r {
+        let wy = k.spatial[dy.unsigned_abs()];
         for dx in -r..=r {
             let ws = wy * k.spatial[dx.unsigned_abs()];
             // The run's pixels whose neighbour at x + dx is on the film.
@@ -142,38 +177,205 @@ fn window_run_portable(f: &Fields, k: &Kernel, run: &Run, out: &mut [[f64; 3]]) 
             if lo >= hi {
                 continue;
             }
-            let p = base + y * w + lo;
-            let q = (base + ny * w + lo).wrapping_add_signed(dx);
             let slots = lo - xs.start..hi - xs.start;
-            let run = &mut weights[slots.clone()];
-            if pair_weights(f, k, &Pairs { ws, p, q }, run) {
-                for (i, wq) in run.iter_mut().enumerate() {
-                    let same = f.n[p + i] >= 2 && f.compatible(p + i, q + i, k);
-                    *wq = ws * f.n[q + i] as f64 * f64::from(u8::from(same));
+            let offset = Offset {
+                w,
+                ht,
+                base,
+                dy,
+                dx,
+            };
+            patches.make(f, &offset, ys.clone(), lo..hi);
+            for (row, y) in ys.clone().enumerate() {
+                let Some(ny) = y.checked_add_signed(dy).filter(|&ny| ny < ht) else {
+                    continue;
+                };
+                let p = base + y * w + lo;
+                let q = (base + ny * w + lo).wrapping_add_signed(dx);
+                let run = &mut weights[slots.clone()];
+                if pair_weights(f, k, &Pairs { ws, p, q }, run) {
+                    for (i, wq) in run.iter_mut().enumerate() {
+                        let same = f.n[p + i] >= 2 && f.compatible(p + i, q + i, k);
+                        *wq = ws * f.n[q + i] as f64 * f64::from(u8::from(same));
+                    }
                 }
-            }
-            if let Some(features) = &f.features {
-                features.weigh(p, q, run);
-            }
-            for (sum, mean) in sum.iter_mut().zip(&f.mean) {
-                let m = &mean[q..q + run.len()];
-                for ((s, wq), m) in sum[slots.clone()].iter_mut().zip(&*run).zip(m) {
-                    *s += wq * m;
+                patches.test(k, row, run);
+                if let Some(features) = &f.features {
+                    features.weigh(p, q, run);
                 }
-            }
-            for (s, wq) in weight[slots].iter_mut().zip(&*run) {
-                *s += wq;
+                for (sum, mean) in sum[row].iter_mut().zip(&f.mean) {
+                    let m = &mean[q..q + run.len()];
+                    for ((s, wq), m) in sum[slots.clone()].iter_mut().zip(&*run).zip(m) {
+                        *s += wq * m;
+                    }
+                }
+                for (s, wq) in weight[row][slots.clone()].iter_mut().zip(&*run) {
+                    *s += wq;
+                }
             }
         }
     }
-    let p = base + y * w + xs.start;
-    for (i, out) in out.iter_mut().enumerate() {
-        let n = f.n[p + i];
-        if n >= 2 {
-            // p is always compatible with itself.
-            *out = std::array::from_fn(|c| sum[c][i] / weight[i]);
-        } else if n == 1 {
-            *out = std::array::from_fn(|c| f.mean[c][p + i]);
+    for (row, y) in ys.clone().enumerate() {
+        let p = base + y * w + xs.start;
+        let out = &mut out[row * xs.len()..(row + 1) * xs.len()];
+        for (i, out) in out.iter_mut().enumerate() {
+            let n = f.n[p + i];
+            if n >= 2 {
+                // p is always compatible with itself.
+                *out = std::array::from_fn(|c| sum[row][c][i] / weight[row][i]);
+            } else if n == 1 {
+                *out = std::array::from_fn(|c| f.mean[c][p + i]);
+            }
+        }
+    }
+}
+
+/// One offset (dy, dx) of the window, on a w × ht film whose frame starts
+/// at pixel `base`.
+#[derive(Clone, Copy)]
+struct Offset {
+    w: usize,
+    ht: usize,
+    base: usize,
+    dy: isize,
+    dx: isize,
+}
+
+/// The patch test's sums of one offset for a block's rows: per row of the
+/// block and its two neighbours, each pixel's three pairs along the row
+/// summed ([`Fields::patch_term`]'s a, b and their count m), which
+/// [`Patches::test`] sums over three rows.
+struct Patches {
+    a: Vec<[f64; RUN]>,
+    b: Vec<[f64; RUN]>,
+    m: Vec<[f64; RUN]>,
+    len: usize,
+}
+
+impl Patches {
+    fn new(rows: usize) -> Patches {
+        // The sums below take a pair and the two beside it.
+        const { assert!(PATCH == 3) };
+        let zero = vec![[0.0; RUN]; rows + 2];
+        Patches {
+            a: zero.clone(),
+            b: zero.clone(),
+            m: zero,
+            len: 0,
+        }
+    }
+
+    /// The sums along each of the rows `ys` and the two beside them, for
+    /// the pixels `xs` (those whose neighbour at dx is on the film): the
+    /// pairs at columns x − 1, x and x + 1 of row py and those + dx of
+    /// row py + dy, added in that order, a pair not on the film (or with
+    /// fewer than two samples either side) adding 0.
+    #[inline(always)]
+    fn make(
+        &mut self,
+        f: &Fields,
+        at: &Offset,
+        ys: std::ops::Range<usize>,
+        xs: std::ops::Range<usize>,
+    ) {
+        let Offset {
+            w,
+            ht,
+            base,
+            dy,
+            dx,
+        } = *at;
+        let len = xs.len();
+        self.len = len;
+        // Term j is the pair at column x = xs.start + j − 1: those with
+        // both on the film are terms from..to.
+        let from = (1 + dx.min(0).unsigned_abs()).saturating_sub(xs.start);
+        let to = (len + 2).min((w + 1).saturating_sub(xs.start + dx.max(0) as usize));
+        for (t, py) in (ys.start as isize - 1..ys.end as isize + 1).enumerate() {
+            let (a, b, m) = (&mut self.a[t], &mut self.b[t], &mut self.m[t]);
+            let qy = py + dy;
+            if py < 0 || qy < 0 || py as usize >= ht || qy as usize >= ht || from >= to {
+                a[..len].fill(0.0);
+                b[..len].fill(0.0);
+                m[..len].fill(0.0);
+                continue;
+            }
+            let (mut ta, mut tb, mut tm) =
+                ([0.0f64; RUN + 2], [0.0f64; RUN + 2], [0.0f64; RUN + 2]);
+            let p = base + py as usize * w + xs.start + from - 1;
+            let q = (base + qy as usize * w + xs.start + from - 1).wrapping_add_signed(dx);
+            let n = to - from;
+            fn field(v: &[f64], at: usize, n: usize) -> &[f64] {
+                &v[at..at + n]
+            }
+            let (np, nq) = (&f.n[p..p + n], &f.n[q..q + n]);
+            let (sp, sq) = (field(&f.spread, p, n), field(&f.spread, q, n));
+            let y = &f.y_mean;
+            let (p0, p1, p2) = (field(&y[0], p, n), field(&y[1], p, n), field(&y[2], p, n));
+            let (q0, q1, q2) = (field(&y[0], q, n), field(&y[1], q, n), field(&y[2], q, n));
+            let terms = ta[from..to].iter_mut().zip(&mut tm[from..to]);
+            let counts = np.iter().zip(nq);
+            let means = p0
+                .iter()
+                .zip(q0)
+                .zip(p1.iter().zip(q1))
+                .zip(p2.iter().zip(q2));
+            for (((ta, tm), (np, nq)), (((p0, q0), (p1, q1)), (p2, q2))) in
+                terms.zip(counts).zip(means)
+            {
+                let both = (*np >= 2) & (*nq >= 2);
+                let (d0, d1, d2) = (p0 - q0, p1 - q1, p2 - q2);
+                let term = (d0 * d0 + d1 * d1) + d2 * d2;
+                *ta = if both { term } else { 0.0 };
+                *tm = if both { 1.0 } else { 0.0 };
+            }
+            for (((tb, sp), sq), tm) in tb[from..to].iter_mut().zip(sp).zip(sq).zip(&tm[from..to]) {
+                *tb = if *tm > 0.0 { sp + sq } else { 0.0 };
+            }
+            // Along the row: the pair before, the pair, the pair after.
+            let three = |t: &[f64; RUN + 2], out: &mut [f64; RUN]| {
+                let (t0, t1, t2) = (&t[..len], &t[1..len + 1], &t[2..len + 2]);
+                for (((o, x), y), z) in out[..len].iter_mut().zip(t0).zip(t1).zip(t2) {
+                    *o = (x + y) + z;
+                }
+            };
+            three(&ta, a);
+            three(&tb, b);
+            three(&tm, m);
+        }
+    }
+
+    /// `wq[i]` left where the patches of row `row`'s pixel i pass
+    /// ([`patch_passes`]), else 0: the three rows' sums added in order.
+    #[inline(always)]
+    fn test(&self, k: &Kernel, row: usize, wq: &mut [f64]) {
+        debug_assert_eq!(wq.len(), self.len);
+        let len = wq.len();
+        let (mut a, mut b, mut m) = ([0.0f64; RUN], [0.0f64; RUN], [0.0f64; RUN]);
+        let down = |v: &[[f64; RUN]], out: &mut [f64; RUN]| {
+            let (r0, r1, r2) = (&v[row][..len], &v[row + 1][..len], &v[row + 2][..len]);
+            for (((o, x), y), z) in out[..len].iter_mut().zip(r0).zip(r1).zip(r2) {
+                *o = (x + y) + z;
+            }
+        };
+        down(&self.a, &mut a);
+        down(&self.b, &mut b);
+        down(&self.m, &mut m);
+        // Nearly every patch has all nine pairs: one bound for those, the
+        // others after.
+        let (full, mut partial) = (k.patch[PATCH * PATCH], false);
+        let sums = a[..len].iter().zip(&b[..len]).zip(&m[..len]);
+        for (wq, ((a, b), m)) in wq.iter_mut().zip(sums) {
+            let nine = *m == (PATCH * PATCH) as f64;
+            partial |= !nine;
+            *wq = if !nine || *a <= full * b { *wq } else { 0.0 };
+        }
+        if partial {
+            for (i, wq) in wq.iter_mut().enumerate() {
+                if m[i] != (PATCH * PATCH) as f64 && !patch_passes(k, a[i], b[i], m[i]) {
+                    *wq = 0.0;
+                }
+            }
         }
     }
 }
@@ -303,6 +505,7 @@ mod tests {
                     t: vec![crit; 15],
                     t2: vec![crit * crit; 15],
                     spatial: [1.0; RADIUS + 1],
+                    patch: Kernel::new(1).patch,
                 };
                 let weight = if want { 8.0 } else { 0.0 };
                 let mut wq = [0.0; 4];
@@ -329,9 +532,37 @@ mod tests {
     }
 
     /// The window as its definition says it, one output pixel at a time:
-    /// the compatible neighbours' means, each weighted by its count, the
-    /// spatial Gaussian and the features' weight, the others skipped.
-    fn denoise_per_pixel(f: &Fields, k: &Kernel, w: usize, ht: usize) -> Vec<[f64; 3]> {
+    /// the compatible neighbours' means whose patches pass, each weighted
+    /// by its count, the spatial Gaussian and the features' weight, the
+    /// others skipped (every patch passing where `patched` is false).
+    fn denoise_per_pixel(
+        f: &Fields,
+        k: &Kernel,
+        (w, ht): (usize, usize),
+        patched: bool,
+    ) -> Vec<[f64; 3]> {
+        // The patch test's sums of the pair (p, q), pixels of one frame
+        // at (x, y) and (nx, ny): along each row, then over the rows.
+        let patches = |base: usize, (x, y): (usize, usize), (nx, ny): (usize, usize)| {
+            let on = |x: usize, u: isize, len: usize| x.checked_add_signed(u).filter(|&v| v < len);
+            let mut sums = [0.0f64; 3];
+            for uy in -1..=1 {
+                let mut row = [0.0f64; 3];
+                for ux in -1..=1 {
+                    let (Some(px), Some(py)) = (on(x, ux, w), on(y, uy, ht)) else {
+                        continue;
+                    };
+                    let (Some(qx), Some(qy)) = (on(nx, ux, w), on(ny, uy, ht)) else {
+                        continue;
+                    };
+                    if let Some((a, b)) = f.patch_term(base + py * w + px, base + qy * w + qx) {
+                        row = [row[0] + a, row[1] + b, row[2] + 1.0];
+                    }
+                }
+                sums = std::array::from_fn(|i| sums[i] + row[i]);
+            }
+            !patched || patch_passes(k, sums[0], sums[1], sums[2])
+        };
         (0..f.n.len())
             .map(|px| {
                 let n = f.n[px];
@@ -344,7 +575,7 @@ mod tests {
                 for ny in y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(ht) {
                     for nx in x.saturating_sub(RADIUS)..(x + RADIUS + 1).min(w) {
                         let q = base + ny * w + nx;
-                        if !f.compatible(px, q, k) {
+                        if !f.compatible(px, q, k) || !patches(base, (x, y), (nx, ny)) {
                             continue;
                         }
                         let wq = k.spatial[ny.abs_diff(y)] * k.spatial[nx.abs_diff(x)];
@@ -361,14 +592,23 @@ mod tests {
             .collect()
     }
 
-    /// The window taken offset by offset along runs of a row gives each
-    /// pixel the bits of its own window's loop: films narrower than the
-    /// window and wider than a run, frames, pixels with 0, 1 and many
-    /// samples, zero-variance pixels (equal and unequal), outliers.
+    /// The window taken offset by offset along runs of a block's rows
+    /// gives each pixel the bits of its own window's loop: films narrower
+    /// than the window and wider than a run, blocks across frames, pixels
+    /// with 0, 1 and many samples, zero-variance pixels (equal and
+    /// unequal), outliers, patches that fail where the pairs pass.
     #[test]
     fn the_window_by_runs_is_the_per_pixel_window() {
         let mut unit = crate::synth::test_units(7);
-        for (w, ht, frames) in [(1, 1, 1), (5, 3, 2), (19, 23, 1), (2 * RUN + 37, 4, 2)] {
+        let mut patched = 0;
+        let films = [
+            (1, 1, 1),
+            (5, 3, 2),
+            (19, 23, 1),
+            (7, 11, 2),
+            (2 * RUN + 37, 4, 2),
+        ];
+        for (w, ht, frames) in films {
             let mut h = test_header(w as u32, ht as u32);
             h.frames = frames;
             let mut recs = Vec::new();
@@ -407,7 +647,10 @@ mod tests {
             let k = Kernel::new(stats.iter().map(|s| s.x.n).max().unwrap_or(0));
             for guide in guides {
                 let img = denoise(&recs, &h, |i| i % 31 != 5, guide);
-                let want = denoise_per_pixel(&Fields::new(&stats, w, ht, guide), &k, w, ht);
+                let fields = Fields::new(&stats, w, ht, guide);
+                let want = denoise_per_pixel(&fields, &k, (w, ht), true);
+                let unpatched = denoise_per_pixel(&fields, &k, (w, ht), false);
+                patched += want.iter().zip(&unpatched).filter(|(a, b)| a != b).count();
                 for (px, (got, want)) in img.data.iter().zip(&want).enumerate() {
                     let bits = |v: &[f64; 3]| v.map(f64::to_bits);
                     let guided = guide.is_some();
@@ -419,6 +662,8 @@ mod tests {
                 }
             }
         }
+        // The patches left some pairs out that the pairs' own test passed.
+        assert!(patched > 50, "{patched}");
     }
 
     /// Where the squares cannot decide (t²·s in the subnormal range, or
@@ -431,7 +676,7 @@ mod tests {
         let k = Kernel {
             t: vec![crit; 64],
             t2: vec![crit * crit; 64],
-            spatial: Kernel::new(1).spatial,
+            ..Kernel::new(1)
         };
         let px = w * ht;
         let tiny: f64 = 1e-300;
@@ -444,13 +689,15 @@ mod tests {
             mean: std::array::from_fn(|c| (0..px).map(|i| (i * (c + 1)) as f64).collect()),
             y_mean: std::array::from_fn(|_| y.clone()),
             se2: std::array::from_fn(|_| vec![tiny; px]),
-            spread: vec![0.0; px],
+            // Far above the patches' differences: every patch passes, and
+            // the pairs' own test decides.
+            spread: vec![1.0; px],
             limit: vec![f64::INFINITY; px],
         };
         let h = test_header(w as u32, ht as u32);
         let mut got = Image::for_header(&h);
         window(&f, &k, &h, 0, &mut got.data);
-        let want = denoise_per_pixel(&f, &k, w, ht);
+        let want = denoise_per_pixel(&f, &k, (w, ht), true);
         for (px, (got, want)) in got.data.iter().zip(&want).enumerate() {
             assert_eq!(got.map(f64::to_bits), want.map(f64::to_bits), "pixel {px}");
         }
@@ -462,8 +709,8 @@ mod tests {
                 ..f
             },
             &k,
-            w,
-            ht,
+            (w, ht),
+            true,
         );
         assert!(got.data.iter().zip(&all).any(|(g, a)| g != a));
     }

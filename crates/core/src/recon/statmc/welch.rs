@@ -2,7 +2,7 @@
 //! and the window's constants: the test's critical values and the
 //! spatial Gaussian.
 
-use super::{ALPHA, RADIUS};
+use super::{ALPHA, PATCH, PATCH_ALPHA, RADIUS};
 
 /// z of the standard normal at upper tail `p` (Acklam's rational
 /// approximation, relative error below 1.2·10⁻⁹ for p in (0, 0.5]).
@@ -35,6 +35,15 @@ fn t_quantile(p: f64, df: f64) -> f64 {
     z + (z3 + z) / (4.0 * df)
         + (5.0 * z5 + 16.0 * z3 + 3.0 * z) / (96.0 * df * df)
         + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * df.powi(3))
+}
+
+/// χ² at upper tail `p` with `df` degrees of freedom (Wilson and
+/// Hilferty's cube of a normal; within 2 % of the tables for df ≥ 3 at
+/// p = 0.001).
+fn chi2_quantile(p: f64, df: f64) -> f64 {
+    let z = normal_quantile(p);
+    let v = 2.0 / (9.0 * df);
+    df * (1.0 - v + z * v.sqrt()).powi(3)
 }
 
 /// Whether two pixels' transformed means ȳ_p, ȳ_q agree on a channel,
@@ -71,6 +80,10 @@ pub(super) struct Kernel {
     pub(super) t2: Vec<f64>,
     /// The spatial Gaussian at each offset 0 … R along an axis.
     pub(super) spatial: [f64; RADIUS + 1],
+    /// The patch test's bound per term, χ²(1 − [`PATCH_ALPHA`], 3m)/3m,
+    /// for m = 1 … 9 pairs of the patch (both of two samples or more);
+    /// m = 0 never passes.
+    pub(super) patch: [f64; PATCH * PATCH + 1],
 }
 
 impl Kernel {
@@ -81,7 +94,16 @@ impl Kernel {
         let t2 = t.iter().map(|t| t * t).collect();
         let sigma = RADIUS as f64 / 2.0;
         let spatial = std::array::from_fn(|d| (-((d * d) as f64) / (2.0 * sigma * sigma)).exp());
-        Kernel { t, t2, spatial }
+        let patch = std::array::from_fn(|m| {
+            let df = 3.0 * m.max(1) as f64;
+            chi2_quantile(PATCH_ALPHA, df) / df
+        });
+        Kernel {
+            t,
+            t2,
+            spatial,
+            patch,
+        }
     }
 }
 
@@ -96,5 +118,10 @@ mod tests {
         // t tables: t(0.0025, 30) = 3.0298, t(0.0025, 10) = 3.5814.
         assert!((t_quantile(0.0025, 30.0) - 3.0298).abs() < 2e-3);
         assert!((t_quantile(0.0025, 10.0) - 3.5814).abs() < 2e-2);
+        // χ² tables at 0.001: 16.266 (3), 27.877 (9), 55.476 (27).
+        for (df, want) in [(3.0, 16.266), (9.0, 27.877), (27.0, 55.476)] {
+            let got = chi2_quantile(0.001, df);
+            assert!((got / want - 1.0).abs() < 0.02, "{df}: {got}");
+        }
     }
 }
