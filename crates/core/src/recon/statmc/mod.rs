@@ -12,9 +12,15 @@
 //! transform brings a pixel's samples nearer the normal the test assumes;
 //! negative values count as 0). Pixel q is compatible with p when, on
 //! every channel, |ȳ_p − ȳ_q| ≤ t(α, ν)·√(s_p²/n_p + s_q²/n_q), with
-//! α = 0.05 two-sided and ν = n_p + n_q − 2 degrees of freedom (at 0.005
-//! the test merged a highlight into its neighbours more often: docs/RESULTS.md,
-//! "The guided image"). The
+//! α = 0.001 two-sided and ν = n_p + n_q − 2 degrees of freedom, and when
+//! their 3 × 3 patches pass the same question pooled: the pairs
+//! (p + u, q + u) summed, Σ (ȳ_p+u − ȳ_q+u)² against the χ² bound at
+//! [`PATCH_ALPHA`] times Σ (s²/n of both) (docs/filter.md F11). One pair
+//! at 64 samples cannot tell a gradient or a texture from noise; nine
+//! pooled can, so the pair's own test can be loose and still stop at
+//! edges, and it still holds a one-pixel highlight a patch would pass.
+//! The patch test is ours, after non-local means' patch distances
+//! (docs/RESULTS.md, "The guided image"). The
 //! output is the mean of the compatible pixels of the (2R + 1)² window,
 //! each weighted by its sample count and a spatial Gaussian of σ = R/2
 //! (and by the renderer's features where given: [`Guide`]): the samples
