@@ -21,6 +21,9 @@ pub(super) struct Fields {
     pub(super) spread: Vec<f64>,
     /// [`spread_limits`].
     pub(super) limit: Vec<f64>,
+    /// [`patch_spreads`]: each pixel's 3 × 3 patch's spread where the whole
+    /// patch is on the film with two samples or more a pixel, else NaN.
+    pub(super) patch_spread: Vec<f64>,
     /// The renderer's features, where given.
     pub(super) features: Option<Features>,
 }
@@ -45,6 +48,7 @@ impl Fields {
             .collect();
         let n: Vec<u32> = stats.par_iter().map(|s| s.x.n).collect();
         let limit = spread_limits(&n, &spread, w, ht);
+        let patch_spread = patch_spreads(&n, &spread, w, ht);
         Fields {
             mean: channel(&|s| s.x.mean),
             y_mean: channel(&|s| s.y_mean),
@@ -52,6 +56,7 @@ impl Fields {
             se2,
             spread,
             limit,
+            patch_spread,
             features: guide.map(Features::new),
         }
     }
@@ -75,10 +80,10 @@ impl Fields {
 
 impl Fields {
     /// The patch test's terms of the pair (p, q) (F11): Σ_c (ȳ_p,c − ȳ_q,c)²
-    /// and the two spreads' sum S_p + S_q, where both have two samples or
-    /// more; none otherwise.
+    /// and the two spreads S_p, S_q, where both have two samples or more;
+    /// none otherwise.
     #[cfg(test)]
-    pub(super) fn patch_term(&self, p: usize, q: usize) -> Option<(f64, f64)> {
+    pub(super) fn patch_term(&self, p: usize, q: usize) -> Option<(f64, f64, f64)> {
         if self.n[p] < 2 || self.n[q] < 2 {
             return None;
         }
@@ -86,9 +91,32 @@ impl Fields {
         let (d0, d1, d2) = (d(0), d(1), d(2));
         Some((
             (d0 * d0 + d1 * d1) + d2 * d2,
-            self.spread[p] + self.spread[q],
+            self.spread[p],
+            self.spread[q],
         ))
     }
+}
+
+/// Per pixel, the sum of the spreads of its 3 × 3 patch, along each row's
+/// three, then over the rows, in order (the patch test's Σ_u S_{p+u}
+/// where every pair of the patch counts), or NaN where some pixel of the
+/// patch is off the film (its frame) or has fewer than two samples.
+pub(super) fn patch_spreads(n: &[u32], spread: &[f64], w: usize, ht: usize) -> Vec<f64> {
+    let mut out = vec![f64::NAN; n.len()];
+    out.par_iter_mut().enumerate().for_each(|(px, out)| {
+        let (frame, i) = (px / (w * ht), px % (w * ht));
+        let (x, y) = (i % w, i / w);
+        if x == 0 || y == 0 || x + 1 >= w || y + 1 >= ht {
+            return;
+        }
+        let at = |dy: usize, dx: usize| frame * w * ht + (y + dy - 1) * w + x + dx - 1;
+        if (0..3).any(|dy| (0..3).any(|dx| n[at(dy, dx)] < 2)) {
+            return;
+        }
+        let row = |dy: usize| (spread[at(dy, 0)] + spread[at(dy, 1)]) + spread[at(dy, 2)];
+        *out = (row(0) + row(1)) + row(2);
+    });
+    out
 }
 
 /// Whether a patch whose `m` pairs (of two samples or more each) sum to

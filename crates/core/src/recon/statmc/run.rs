@@ -52,9 +52,11 @@ pub(super) fn window(
 
 /// The mean of its window's compatible pixels at each of `pixels`
 /// (ascending), in their order: each pixel's the same bits as
-/// [`window`]'s, whatever the run it is taken in. Pixels of a row
-/// [`GAP`] or fewer apart are taken in one run, the pixels between them
-/// made and dropped.
+/// [`window`]'s, whatever the run it is taken in. The pixels are taken
+/// tile by tile ([`BLOCK`] rows of a frame by [`RUN`] columns): a tile's
+/// as one block over the rows and columns they span, or as runs of each
+/// row (pixels [`GAP`] or fewer apart in one run, the pixels between them
+/// made and dropped), whichever makes less work ([`Run::cost`]).
 pub(super) fn window_at(
     fields: &Fields,
     kernel: &Kernel,
@@ -62,22 +64,71 @@ pub(super) fn window_at(
     pixels: &[usize],
 ) -> Vec<[f64; 3]> {
     let (w, ht) = (h.width as usize, h.height as usize);
-    // Runs of a row, RUN pixels at most, each with the pixels it gives.
-    let mut runs: Vec<(Run, &[usize])> = Vec::new();
-    let mut i = 0;
-    while i < pixels.len() {
-        let (row, x) = (pixels[i] / w, pixels[i] % w);
-        let mut len = 1;
-        while let Some(&next) = pixels.get(i + len) {
-            let end = next - row * w;
-            if next / w != row || end - pixels[i + len - 1] % w > GAP || end >= x + RUN {
-                break;
+    let tile_of = |px: usize| {
+        let (frame, i) = (px / (w * ht), px % (w * ht));
+        (frame, i / w / BLOCK, i % w / RUN)
+    };
+    // The pixels' places, tile by tile (ascending within a tile).
+    let mut order: Vec<usize> = (0..pixels.len()).collect();
+    order.sort_by_key(|&i| tile_of(pixels[i]));
+    let tiles: Vec<&[usize]> = order
+        .chunk_by(|&a, &b| tile_of(pixels[a]) == tile_of(pixels[b]))
+        .collect();
+    let given: Vec<Vec<(usize, [f64; 3])>> = tiles
+        .into_par_iter()
+        .map(|places| {
+            let at: Vec<usize> = places.iter().map(|&i| pixels[i]).collect();
+            let mut values = Vec::with_capacity(at.len());
+            let mut next = at.iter();
+            for (run, count) in plan(&at, w, ht) {
+                let mut all = vec![[0.0; 3]; run.ys.len() * run.xs.len()];
+                window_run(fields, kernel, &run, &mut all);
+                for &px in next.by_ref().take(count) {
+                    let (y, x) = (px % (w * ht) / w, px % w);
+                    values.push(all[(y - run.ys.start) * run.xs.len() + x - run.xs.start]);
+                }
             }
-            len += 1;
+            places.iter().copied().zip(values).collect()
+        })
+        .collect();
+    let mut out = vec![[0.0; 3]; pixels.len()];
+    for (i, value) in given.into_iter().flatten() {
+        out[i] = value;
+    }
+    out
+}
+
+/// How [`window_at`] takes one tile's `pixels` (ascending): one block
+/// over the rows and columns they span, or runs of one row each
+/// ([`runs_of`]), whichever costs less; each run with how many of the
+/// pixels it gives, in their order.
+fn plan(pixels: &[usize], w: usize, ht: usize) -> Vec<(Run, usize)> {
+    let runs = runs_of(pixels, w, ht);
+    let block = Run::spanning(pixels, w, ht);
+    if block.cost() <= runs.iter().map(|(run, _)| run.cost()).sum::<usize>() {
+        vec![(block, pixels.len())]
+    } else {
+        runs
+    }
+}
+
+/// The runs of one row each that take `pixels` (ascending, in one frame):
+/// pixels of a row [`GAP`] or fewer apart share a run; each with how many
+/// of the pixels it gives.
+fn runs_of(pixels: &[usize], w: usize, ht: usize) -> Vec<(Run, usize)> {
+    let mut runs: Vec<(Run, usize)> = Vec::new();
+    for &px in pixels {
+        let (row, x) = (px / w, px % w);
+        if let Some((run, count)) = runs.last_mut()
+            && run.base + run.ys.start * w == row * w
+            && x - run.xs.end < GAP
+        {
+            run.xs.end = x + 1;
+            *count += 1;
+            continue;
         }
         let (base, y) = ((row / ht) * w * ht, row % ht);
-        let xs = x..pixels[i + len - 1] % w + 1;
-        let ys = y..y + 1;
+        let (ys, xs) = (y..y + 1, x..x + 1);
         runs.push((
             Run {
                 w,
@@ -86,20 +137,10 @@ pub(super) fn window_at(
                 ys,
                 xs,
             },
-            &pixels[i..i + len],
+            1,
         ));
-        i += len;
     }
-    let given: Vec<Vec<[f64; 3]>> = runs
-        .into_par_iter()
-        .map(|(run, pixels)| {
-            let mut all = vec![[0.0; 3]; run.xs.len()];
-            window_run(fields, kernel, &run, &mut all);
-            let first = run.base + run.ys.start * run.w + run.xs.start;
-            pixels.iter().map(|px| all[px - first]).collect()
-        })
-        .collect();
-    given.concat()
+    runs
 }
 
 /// Pixels of a row this far apart or nearer are taken in one run of
@@ -125,6 +166,34 @@ struct Run {
     base: usize,
     ys: std::ops::Range<usize>,
     xs: std::ops::Range<usize>,
+}
+
+impl Run {
+    /// The rows and columns `pixels` (of one frame, not empty) span.
+    fn spanning(pixels: &[usize], w: usize, ht: usize) -> Run {
+        let base = pixels[0] / (w * ht) * w * ht;
+        let span = |at: &dyn Fn(usize) -> usize| {
+            let (lo, hi) = pixels.iter().fold((usize::MAX, 0), |(lo, hi), &px| {
+                (lo.min(at(px)), hi.max(at(px) + 1))
+            });
+            lo..hi
+        };
+        let (ys, xs) = (span(&|px| (px - base) / w), span(&|px| px % w));
+        Run {
+            w,
+            ht,
+            base,
+            ys,
+            xs,
+        }
+    }
+
+    /// The run's work, in patch terms an offset: the terms of its rows
+    /// and the two beside them, and its pairs, each about three terms.
+    fn cost(&self) -> usize {
+        let (rows, len) = (self.ys.len(), self.xs.len());
+        (rows + 2) * (len + 2) + 3 * rows * len
+    }
 }
 
 /// The output of the pixels of `run`, into `out` (row by row): each
@@ -199,7 +268,7 @@ fn window_run_portable(f: &Fields, k: &Kernel, run: &Run, out: &mut [[f64; 3]]) 
                         *wq = ws * f.n[q + i] as f64 * f64::from(u8::from(same));
                     }
                 }
-                patches.test(k, row, run);
+                patches.test(f, k, &offset, row, (p, q), run);
                 if let Some(features) = &f.features {
                     features.weigh(p, q, run);
                 }
@@ -241,14 +310,12 @@ struct Offset {
     dx: isize,
 }
 
-/// The patch test's sums of one offset for a block's rows: per row of the
-/// block and its two neighbours, each pixel's three pairs along the row
-/// summed ([`Fields::patch_term`]'s a, b and their count m), which
+/// The patch test's squared differences of one offset for a block's
+/// rows: per row of the block and its two neighbours, each pixel's three
+/// pairs along the row summed ([`Fields::patch_term`]'s a), which
 /// [`Patches::test`] sums over three rows.
 struct Patches {
     a: Vec<[f64; RUN]>,
-    b: Vec<[f64; RUN]>,
-    m: Vec<[f64; RUN]>,
     len: usize,
 }
 
@@ -256,11 +323,8 @@ impl Patches {
     fn new(rows: usize) -> Patches {
         // The sums below take a pair and the two beside it.
         const { assert!(PATCH == 3) };
-        let zero = vec![[0.0; RUN]; rows + 2];
         Patches {
-            a: zero.clone(),
-            b: zero.clone(),
-            m: zero,
+            a: vec![[0.0; RUN]; rows + 2],
             len: 0,
         }
     }
@@ -292,16 +356,13 @@ impl Patches {
         let from = (1 + dx.min(0).unsigned_abs()).saturating_sub(xs.start);
         let to = (len + 2).min((w + 1).saturating_sub(xs.start + dx.max(0) as usize));
         for (t, py) in (ys.start as isize - 1..ys.end as isize + 1).enumerate() {
-            let (a, b, m) = (&mut self.a[t], &mut self.b[t], &mut self.m[t]);
+            let a = &mut self.a[t];
             let qy = py + dy;
             if py < 0 || qy < 0 || py as usize >= ht || qy as usize >= ht || from >= to {
                 a[..len].fill(0.0);
-                b[..len].fill(0.0);
-                m[..len].fill(0.0);
                 continue;
             }
-            let (mut ta, mut tb, mut tm) =
-                ([0.0f64; RUN + 2], [0.0f64; RUN + 2], [0.0f64; RUN + 2]);
+            let mut ta = [0.0f64; RUN + 2];
             let p = base + py as usize * w + xs.start + from - 1;
             let q = (base + qy as usize * w + xs.start + from - 1).wrapping_add_signed(dx);
             let n = to - from;
@@ -309,75 +370,104 @@ impl Patches {
                 &v[at..at + n]
             }
             let (np, nq) = (&f.n[p..p + n], &f.n[q..q + n]);
-            let (sp, sq) = (field(&f.spread, p, n), field(&f.spread, q, n));
             let y = &f.y_mean;
             let (p0, p1, p2) = (field(&y[0], p, n), field(&y[1], p, n), field(&y[2], p, n));
             let (q0, q1, q2) = (field(&y[0], q, n), field(&y[1], q, n), field(&y[2], q, n));
-            let terms = ta[from..to].iter_mut().zip(&mut tm[from..to]);
             let counts = np.iter().zip(nq);
             let means = p0
                 .iter()
                 .zip(q0)
                 .zip(p1.iter().zip(q1))
                 .zip(p2.iter().zip(q2));
-            for (((ta, tm), (np, nq)), (((p0, q0), (p1, q1)), (p2, q2))) in
-                terms.zip(counts).zip(means)
+            for ((ta, (np, nq)), (((p0, q0), (p1, q1)), (p2, q2))) in
+                ta[from..to].iter_mut().zip(counts).zip(means)
             {
                 let both = (*np >= 2) & (*nq >= 2);
                 let (d0, d1, d2) = (p0 - q0, p1 - q1, p2 - q2);
                 let term = (d0 * d0 + d1 * d1) + d2 * d2;
                 *ta = if both { term } else { 0.0 };
-                *tm = if both { 1.0 } else { 0.0 };
-            }
-            for (((tb, sp), sq), tm) in tb[from..to].iter_mut().zip(sp).zip(sq).zip(&tm[from..to]) {
-                *tb = if *tm > 0.0 { sp + sq } else { 0.0 };
             }
             // Along the row: the pair before, the pair, the pair after.
-            let three = |t: &[f64; RUN + 2], out: &mut [f64; RUN]| {
-                let (t0, t1, t2) = (&t[..len], &t[1..len + 1], &t[2..len + 2]);
-                for (((o, x), y), z) in out[..len].iter_mut().zip(t0).zip(t1).zip(t2) {
-                    *o = (x + y) + z;
-                }
-            };
-            three(&ta, a);
-            three(&tb, b);
-            three(&tm, m);
+            let (t0, t1, t2) = (&ta[..len], &ta[1..len + 1], &ta[2..len + 2]);
+            for (((o, x), y), z) in a[..len].iter_mut().zip(t0).zip(t1).zip(t2) {
+                *o = (x + y) + z;
+            }
         }
     }
 
-    /// `wq[i]` left where the patches of row `row`'s pixel i pass
-    /// ([`patch_passes`]), else 0: the three rows' sums added in order.
+    /// `wq[i]` left where the patches of the pairs (p + i, q + i) pass
+    /// ([`patch_passes`]), else 0, p + i in row `row` of the block: the
+    /// three rows' sums added in order. Where both patches lie whole on
+    /// the film with two samples a pixel, the spreads are the pixels'
+    /// [`Fields::patch_spread`]; elsewhere [`patch_spreads_of`] makes them.
     #[inline(always)]
-    fn test(&self, k: &Kernel, row: usize, wq: &mut [f64]) {
+    fn test(
+        &self,
+        f: &Fields,
+        k: &Kernel,
+        at: &Offset,
+        row: usize,
+        pq: (usize, usize),
+        wq: &mut [f64],
+    ) {
         debug_assert_eq!(wq.len(), self.len);
+        let (p, q) = pq;
         let len = wq.len();
-        let (mut a, mut b, mut m) = ([0.0f64; RUN], [0.0f64; RUN], [0.0f64; RUN]);
-        let down = |v: &[[f64; RUN]], out: &mut [f64; RUN]| {
-            let (r0, r1, r2) = (&v[row][..len], &v[row + 1][..len], &v[row + 2][..len]);
-            for (((o, x), y), z) in out[..len].iter_mut().zip(r0).zip(r1).zip(r2) {
-                *o = (x + y) + z;
-            }
-        };
-        down(&self.a, &mut a);
-        down(&self.b, &mut b);
-        down(&self.m, &mut m);
-        // Nearly every patch has all nine pairs: one bound for those, the
-        // others after.
-        let (full, mut partial) = (k.patch[PATCH * PATCH], false);
-        let sums = a[..len].iter().zip(&b[..len]).zip(&m[..len]);
-        for (wq, ((a, b), m)) in wq.iter_mut().zip(sums) {
-            let nine = *m == (PATCH * PATCH) as f64;
-            partial |= !nine;
-            *wq = if !nine || *a <= full * b { *wq } else { 0.0 };
+        let mut a = [0.0f64; RUN];
+        let v = &self.a;
+        let (r0, r1, r2) = (&v[row][..len], &v[row + 1][..len], &v[row + 2][..len]);
+        for (((o, x), y), z) in a[..len].iter_mut().zip(r0).zip(r1).zip(r2) {
+            *o = (x + y) + z;
+        }
+        let full = k.patch[PATCH * PATCH];
+        let (sp, sq) = (&f.patch_spread[p..p + len], &f.patch_spread[q..q + len]);
+        let mut partial = false;
+        for (((wq, a), sp), sq) in wq.iter_mut().zip(&a[..len]).zip(sp).zip(sq) {
+            let b = sp + sq;
+            let whole = !b.is_nan();
+            partial |= !whole;
+            *wq = if !whole || *a <= full * b { *wq } else { 0.0 };
         }
         if partial {
             for (i, wq) in wq.iter_mut().enumerate() {
-                if m[i] != (PATCH * PATCH) as f64 && !patch_passes(k, a[i], b[i], m[i]) {
-                    *wq = 0.0;
+                if (sp[i] + sq[i]).is_nan() {
+                    let (b, m) = patch_spreads_of(f, at, p + i, q + i);
+                    if !patch_passes(k, a[i], b, m) {
+                        *wq = 0.0;
+                    }
                 }
             }
         }
     }
+}
+
+/// The patch test's spreads and count of the pair (p, q), q at the
+/// offset `at` from p: Σ_u S_{p+u} + Σ_u S_{q+u} over the m pairs of the
+/// 3 × 3 patches both on the film with two samples or more, each side
+/// summed along the rows, then over them, in order.
+fn patch_spreads_of(f: &Fields, at: &Offset, p: usize, q: usize) -> (f64, f64) {
+    let Offset { w, ht, base, .. } = *at;
+    let (py, px) = ((p - base) / w, (p - base) % w);
+    let (qy, qx) = ((q - base) / w, (q - base) % w);
+    let on = |v: usize, u: isize, len: usize| v.checked_add_signed(u).filter(|&v| v < len);
+    let (mut sp, mut sq, mut m) = (0.0f64, 0.0f64, 0.0f64);
+    for uy in -1..=1 {
+        let (mut rp, mut rq) = (0.0f64, 0.0f64);
+        for ux in -1..=1 {
+            let (Some(y0), Some(x0)) = (on(py, uy, ht), on(px, ux, w)) else {
+                continue;
+            };
+            let (Some(y1), Some(x1)) = (on(qy, uy, ht), on(qx, ux, w)) else {
+                continue;
+            };
+            let (p, q) = (base + y0 * w + x0, base + y1 * w + x1);
+            if f.n[p] >= 2 && f.n[q] >= 2 {
+                (rp, rq, m) = (rp + f.spread[p], rq + f.spread[q], m + 1.0);
+            }
+        }
+        (sp, sq) = (sp + rp, sq + rq);
+    }
+    (sp + sq, m)
 }
 
 /// Each pair (p + i, q + i)'s weight into `wq`: `ws` × q's sample count
@@ -500,6 +590,7 @@ mod tests {
                     se2: std::array::from_fn(|_| [[sp; 4], [sq; 4]].concat()),
                     spread: vec![0.0; 8],
                     limit: vec![f64::INFINITY; 8],
+                    patch_spread: vec![f64::NAN; 8],
                 };
                 let k = Kernel {
                     t: vec![crit; 15],
@@ -545,9 +636,10 @@ mod tests {
         // at (x, y) and (nx, ny): along each row, then over the rows.
         let patches = |base: usize, (x, y): (usize, usize), (nx, ny): (usize, usize)| {
             let on = |x: usize, u: isize, len: usize| x.checked_add_signed(u).filter(|&v| v < len);
-            let mut sums = [0.0f64; 3];
+            // Σ a, Σ S_p, Σ S_q and the count m.
+            let mut sums = [0.0f64; 4];
             for uy in -1..=1 {
-                let mut row = [0.0f64; 3];
+                let mut row = [0.0f64; 4];
                 for ux in -1..=1 {
                     let (Some(px), Some(py)) = (on(x, ux, w), on(y, uy, ht)) else {
                         continue;
@@ -555,13 +647,15 @@ mod tests {
                     let (Some(qx), Some(qy)) = (on(nx, ux, w), on(ny, uy, ht)) else {
                         continue;
                     };
-                    if let Some((a, b)) = f.patch_term(base + py * w + px, base + qy * w + qx) {
-                        row = [row[0] + a, row[1] + b, row[2] + 1.0];
+                    let pair = f.patch_term(base + py * w + px, base + qy * w + qx);
+                    if let Some((a, sp, sq)) = pair {
+                        row = [row[0] + a, row[1] + sp, row[2] + sq, row[3] + 1.0];
                     }
                 }
                 sums = std::array::from_fn(|i| sums[i] + row[i]);
             }
-            !patched || patch_passes(k, sums[0], sums[1], sums[2])
+            let [a, sp, sq, m] = sums;
+            !patched || patch_passes(k, a, sp + sq, m)
         };
         (0..f.n.len())
             .map(|px| {
@@ -666,6 +760,51 @@ mod tests {
         assert!(patched > 50, "{patched}");
     }
 
+    /// The window at chosen pixels is the film's window there, bit for
+    /// bit: a tile's pixels dense (taken as one block of rows), scattered
+    /// (runs of a row each), a long row and the film's edges, both frames.
+    #[test]
+    fn the_window_at_pixels_is_the_films_window_there() {
+        let (w, ht, frames) = (RUN + 44, 20, 2);
+        let mut h = test_header(w as u32, ht as u32);
+        h.frames = frames;
+        let mut unit = crate::synth::test_units(19);
+        let mut recs = Vec::new();
+        for px in 0..w * ht * frames as usize {
+            let (f, i) = (px / (w * ht), px % (w * ht));
+            let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+            let level = 1.0 + (x / 40.0).floor();
+            for _ in 0..(2 + (unit() * 8.0) as usize) {
+                let v = level * (0.6 + 0.8 * unit() as f32);
+                recs.push(Record::new(x, y, f as f32 + 0.5, [v, 0.5 * v, 0.2]));
+            }
+        }
+        let stats = stats_of(&recs, &h, |_| true);
+        let fields = Fields::new(&stats, w, ht, None);
+        let k = Kernel::new(stats.iter().map(|s| s.x.n).max().unwrap_or(0));
+        let mut film = Image::for_header(&h);
+        window(&fields, &k, &h, 0, &mut film.data);
+        let frame = w * ht;
+        // Dense: rows 2–6 of the first block, columns 10–60.
+        let dense: Vec<usize> = (2..7)
+            .flat_map(|y| (10..61).map(move |x| y * w + x))
+            .collect();
+        let scattered: Vec<usize> = (0..2 * frame).step_by(37).collect();
+        let mut mixed: Vec<usize> = dense.iter().chain(&scattered).copied().collect();
+        mixed.extend((9 * w..10 * w).chain([0, frame - 1, frame, 2 * frame - 1]));
+        mixed.sort();
+        mixed.dedup();
+        assert_eq!(plan(&dense, w, ht).len(), 1);
+        assert!(plan(&scattered[..3], w, ht).len() == 3);
+        for pixels in [dense, scattered, mixed] {
+            let got = window_at(&fields, &k, &h, &pixels);
+            for (px, got) in pixels.iter().zip(got) {
+                let want = film.data[*px];
+                assert_eq!(got.map(f64::to_bits), want.map(f64::to_bits), "pixel {px}");
+            }
+        }
+    }
+
     /// Where the squares cannot decide (t²·s in the subnormal range, or
     /// a pair on the boundary itself), the window takes the written form,
     /// pair by pair, as the per-pixel window does.
@@ -693,6 +832,7 @@ mod tests {
             // the pairs' own test decides.
             spread: vec![1.0; px],
             limit: vec![f64::INFINITY; px],
+            patch_spread: super::super::fields::patch_spreads(&vec![8; px], &vec![1.0; px], w, ht),
         };
         let h = test_header(w as u32, ht as u32);
         let mut got = Image::for_header(&h);
@@ -739,6 +879,7 @@ mod tests {
                 limit: (0..px)
                     .map(|_| pick(&[0.0, 0.5, 5.0, f64::INFINITY]))
                     .collect(),
+                patch_spread: vec![f64::NAN; px],
                 n,
             };
             let k = Kernel::new(16);
