@@ -129,8 +129,11 @@ pub(super) fn patch_passes(k: &Kernel, a: f64, b: f64, m: f64) -> bool {
 }
 
 /// Per pixel, the largest spread a pixel it averages with may have:
-/// [`NOISIER`] × the larger of the pixel's spread and the median spread of
-/// its 3 × 3 neighbourhood (same frame, pixels with two samples or more).
+/// [`NOISIER`] × the larger of the pixel's spread and the upper quartile
+/// (nearest rank: the ⌈¾·c⌉-th smallest of c) of the spreads of its
+/// 3 × 3 neighbourhood (same frame, pixels with two samples or more), so
+/// that noise three of the nine share is the region's noise and a lone
+/// outlier is not.
 pub(super) fn spread_limits(n: &[u32], spread: &[f64], w: usize, ht: usize) -> Vec<f64> {
     let mut limit = vec![0.0; n.len()];
     limit.par_iter_mut().enumerate().for_each(|(px, l)| {
@@ -150,8 +153,11 @@ pub(super) fn spread_limits(n: &[u32], spread: &[f64], w: usize, ht: usize) -> V
         }
         let around = &mut around[..count];
         around.sort_by(f64::total_cmp);
-        let median = around.get(count / 2).copied().unwrap_or(0.0);
-        *l = NOISIER * spread[px].max(median);
+        let quartile = around
+            .get((3 * count).div_ceil(4).saturating_sub(1))
+            .copied()
+            .unwrap_or(0.0);
+        *l = NOISIER * spread[px].max(quartile);
     });
     limit
 }

@@ -31,15 +31,17 @@
 //! Two pixels the test cannot tell apart still do not average each other
 //! when one is far noisier: its s²/n (summed over the channels) above
 //! [`NOISIER`] times the other's, each pixel's taken as at least the
-//! median of its 3 × 3 neighbourhood's. A pixel holding an outlier the
+//! upper quartile of its 3 × 3 neighbourhood's. A pixel holding an outlier the
 //! filter accepted has so wide a variance that the test alone passes it
 //! into every neighbour's average, each of which counts its samples at
 //! full weight: its energy is counted once per neighbour (on a synthetic
 //! field with 2 % fireflies at 8 spp, 7.8× the reference's energy in all).
 //! Left out both ways, the pixel keeps its own samples' mean and its
-//! energy stays counted once. The neighbourhood's median keeps a pixel
-//! whose few samples all missed a rare bright path, and so look quiet,
-//! averaging with its neighbours. An addition to Sakai et al.
+//! energy stays counted once. The neighbourhood's upper quartile keeps a
+//! pixel whose few samples all missed a rare bright path, and so look
+//! quiet, averaging with its neighbours: where three of nine pixels hold
+//! such a path it is the region's noise, which the average should take,
+//! and one alone still stands apart. An addition to Sakai et al.
 //! (docs/RESULTS.md, "The guided image").
 
 use super::Image;
@@ -59,7 +61,7 @@ const PATCH: usize = 3;
 /// Upper-tail significance of the patch test.
 const PATCH_ALPHA: f64 = 0.001;
 /// Two pixels average each other only when neither's s²/n exceeds this
-/// many times the other's (or the other's neighbourhood median): standard
+/// many times the other's (or its neighbourhood's upper quartile): standard
 /// errors within 4× (docs/RESULTS.md, "The guided image").
 pub const NOISIER: f64 = 16.0;
 
@@ -273,6 +275,37 @@ mod tests {
             "{:?} against {own}",
             img.data[12]
         );
+    }
+
+    /// Where three pixels of a 3 × 3 neighbourhood hold a rare bright
+    /// sample it is that region's noise: the quiet pixel among them
+    /// averages them in (the neighbourhood's upper quartile, where its
+    /// median would have left them out), while a quiet pixel far from
+    /// them, whose neighbourhood is quiet, still leaves them out.
+    #[test]
+    fn noise_three_neighbours_share_is_averaged() {
+        let h = test_header(9, 9);
+        let bright = [(2, 3), (4, 3), (3, 4)];
+        let mut recs = Vec::new();
+        for y in 0..9 {
+            for x in 0..9 {
+                for s in 0..8 {
+                    let mut v = 1.0 + 0.05 * ((s * 3 + x + 2 * y) % 4) as f32;
+                    if s == 0 && bright.contains(&(x, y)) {
+                        v = 50.0;
+                    }
+                    recs.push(Record::new(x as f32 + 0.5, y as f32 + 0.5, 0.0, [v; 3]));
+                }
+            }
+        }
+        let img = denoise(&recs, &h, |_| true, None);
+        let at = |x: usize, y: usize| img.data[y * 9 + x][0];
+        assert!(
+            at(3, 3) > 1.3,
+            "the shared noise was left out: {}",
+            at(3, 3)
+        );
+        assert!((at(8, 8) - 1.075).abs() < 0.05, "{}", at(8, 8));
     }
 
     /// The vector add gives the scalar add's statistics bit for bit, over
