@@ -245,24 +245,30 @@ mod tests {
         }
     }
 
-    /// A pixel holding an outlier passes every neighbour's test (its
-    /// variance is wide) but, far noisier, averages with none of them:
-    /// its energy is counted once, in its own pixel.
-    #[test]
-    fn a_far_noisier_neighbour_is_left_out() {
-        let h = test_header(5, 5);
+    /// A side × side film of 8 quiet samples a pixel (1 to 1.15, mean
+    /// 1.075), the first sample of each pixel in `bright` set to `value`.
+    fn speckled(side: usize, bright: &[(usize, usize)], value: f32) -> (Header, Vec<Record>) {
         let mut recs = Vec::new();
-        for y in 0..5 {
-            for x in 0..5 {
+        for y in 0..side {
+            for x in 0..side {
                 for s in 0..8 {
                     let mut v = 1.0 + 0.05 * ((s * 3 + x + 2 * y) % 4) as f32;
-                    if (x, y, s) == (2, 2, 0) {
-                        v = 500.0;
+                    if s == 0 && bright.contains(&(x, y)) {
+                        v = value;
                     }
                     recs.push(Record::new(x as f32 + 0.5, y as f32 + 0.5, 0.0, [v; 3]));
                 }
             }
         }
+        (test_header(side as u32, side as u32), recs)
+    }
+
+    /// A pixel holding an outlier passes every neighbour's test (its
+    /// variance is wide) but, far noisier, averages with none of them:
+    /// its energy is counted once, in its own pixel.
+    #[test]
+    fn a_far_noisier_neighbour_is_left_out() {
+        let (h, recs) = speckled(5, &[(2, 2)], 500.0);
         let img = denoise(&recs, &h, |_| true, None);
         for (px, v) in img.data.iter().enumerate() {
             if px != 12 {
@@ -284,20 +290,7 @@ mod tests {
     /// them, whose neighbourhood is quiet, still leaves them out.
     #[test]
     fn noise_three_neighbours_share_is_averaged() {
-        let h = test_header(9, 9);
-        let bright = [(2, 3), (4, 3), (3, 4)];
-        let mut recs = Vec::new();
-        for y in 0..9 {
-            for x in 0..9 {
-                for s in 0..8 {
-                    let mut v = 1.0 + 0.05 * ((s * 3 + x + 2 * y) % 4) as f32;
-                    if s == 0 && bright.contains(&(x, y)) {
-                        v = 50.0;
-                    }
-                    recs.push(Record::new(x as f32 + 0.5, y as f32 + 0.5, 0.0, [v; 3]));
-                }
-            }
-        }
+        let (h, recs) = speckled(9, &[(2, 3), (4, 3), (3, 4)], 50.0);
         let img = denoise(&recs, &h, |_| true, None);
         let at = |x: usize, y: usize| img.data[y * 9 + x][0];
         assert!(
