@@ -16,7 +16,10 @@ and per block, with
 
 e_D − e_X/2 estimates the denoised half's squared error (the halves'
 noise is independent) and e_X/4 the whole mean's variance. The block
-takes X where e_X/4 < C · (e_D − e_X/2), else G. Prints each dump's
+takes X where e_X/4 < C · (e_D − e_X/2), else G; with BLEND=1 it takes
+w·X + (1 − w)·G instead, w = E/(E + e_X/4), E = C · (e_D − e_X/2) (at
+least 0). The outputs are kept in WORK for the next run, with the
+binary's size and time: a run with another binary refuses WORK. Prints each dump's
 ratios (RMS / min(mean, OIDN), RMS_display / OIDN's, FLIP and HDR-FLIP /
 min) for G and the choice, then counts at `guided_oidn`'s targets,
 geometric means and worst.
@@ -25,8 +28,8 @@ Needs OIDN (README), numpy, flip-evaluator and OpenEXR (our outputs are
 tiled):
 
     eval "$(bash tools/oidn/setup.sh)"
-    python3 -m venv /tmp/hb && /tmp/hb/bin/pip install numpy flip-evaluator OpenEXR
-    B=8 C=0.1 /tmp/hb/bin/python tools/results/held_out_blocks.py DUMPS WORK
+    python3 -m venv VENV && VENV/bin/pip install numpy flip-evaluator OpenEXR
+    B=8 C=0.1 VENV/bin/python tools/results/held_out_blocks.py DUMPS WORK
 """
 import glob, math, os, re, subprocess, sys
 
@@ -40,6 +43,7 @@ import OpenEXR  # noqa: E402
 
 BIN = os.environ.get("BIN", os.path.join(here, "..", "..", "target", "release", "pathdensity"))
 B, C = int(os.environ.get("B", 8)), float(os.environ.get("C", 0.1))
+BLEND = os.environ.get("BLEND") == "1"
 
 
 def rgb(path):
@@ -104,13 +108,25 @@ def choose(g, x, xa, xb, da, db):
         for x0 in range(0, g.shape[1], B):
             block = np.s_[y:y + B, x0:x0 + B]
             ed, ex = e_d[block].mean(), e_x[block].mean()
-            if ex / 4 < C * (ed - ex / 2):
+            err = C * max(ed - ex / 2, 0.0)
+            if BLEND:
+                w = err / (err + ex / 4) if err + ex / 4 > 0 else 0.0
+                out[block] = w * x[block] + (1 - w) * g[block]
+            elif ex / 4 < err:
                 out[block] = x[block]
     return out
 
 
 def main(dumps, work):
     os.makedirs(work, exist_ok=True)
+    st = os.stat(BIN)
+    stamp, stamp_path = f"{BIN} {st.st_size} {st.st_mtime_ns}\n", os.path.join(work, "binary")
+    if os.path.exists(stamp_path) and open(stamp_path).read() != stamp:
+        sys.exit(f"{work}: made by another binary than {BIN}; give an empty folder")
+    if os.listdir(work) and not os.path.exists(stamp_path):
+        sys.exit(f"{work}: not empty and not this script's; give an empty folder")
+    with open(stamp_path, "w") as f:
+        f.write(stamp)
     ratios = {"guided_oidn": [], "blocks": []}
     for dump in sorted(glob.glob(os.path.join(dumps, "*.pds"))):
         m = re.match(r"(.+)-(\d+)\.pds$", os.path.basename(dump))

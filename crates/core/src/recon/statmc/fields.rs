@@ -132,8 +132,8 @@ pub(super) fn patch_passes(k: &Kernel, a: f64, b: f64, m: f64) -> bool {
 /// [`NOISIER`] × the larger of the pixel's spread and the upper quartile
 /// (nearest rank: the ⌈¾·c⌉-th smallest of c) of the spreads of its
 /// 3 × 3 neighbourhood (same frame, pixels with two samples or more), so
-/// that noise three of the nine share is the region's noise and a lone
-/// outlier is not.
+/// that noise three of the nine share (two at the film's edge) is the
+/// region's noise and a lone outlier is not.
 pub(super) fn spread_limits(n: &[u32], spread: &[f64], w: usize, ht: usize) -> Vec<f64> {
     let mut limit = vec![0.0; n.len()];
     limit.par_iter_mut().enumerate().for_each(|(px, l)| {

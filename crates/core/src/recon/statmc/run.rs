@@ -1,6 +1,7 @@
-//! statmc's window over the film, a run of a row's pixels at a time:
-//! each offset of the window for the whole run, the pairs decided four at
-//! a time in vector registers where the CPU has them.
+//! statmc's window over the film, a block of rows by a run of columns
+//! at a time: each offset of the window for the whole block (its patch
+//! terms made once), the pairs decided four at a time in vector registers
+//! where the CPU has them.
 
 #[cfg(target_arch = "x86_64")]
 use super::avx2;
@@ -20,6 +21,8 @@ pub(super) fn window(
     out: &mut [[f64; 3]],
 ) {
     let (w, ht) = (h.width as usize, h.height as usize);
+    // Whole rows only: a block of none would never end.
+    debug_assert!(w > 0 && out.len() % w == 0 && first % w == 0);
     out.par_chunks_mut((w * BLOCK).max(1))
         .enumerate()
         .for_each(|(b, out)| {
@@ -116,6 +119,10 @@ fn plan(pixels: &[usize], w: usize, ht: usize) -> Vec<(Run, usize)> {
 /// pixels of a row [`GAP`] or fewer apart share a run; each with how many
 /// of the pixels it gives.
 fn runs_of(pixels: &[usize], w: usize, ht: usize) -> Vec<(Run, usize)> {
+    debug_assert!(
+        pixels.windows(2).all(|p| p[0] < p[1]),
+        "ascending, once each"
+    );
     let mut runs: Vec<(Run, usize)> = Vec::new();
     for &px in pixels {
         let (row, x) = (px / w, px % w);
@@ -795,7 +802,7 @@ mod tests {
         mixed.sort();
         mixed.dedup();
         assert_eq!(plan(&dense, w, ht).len(), 1);
-        assert!(plan(&scattered[..3], w, ht).len() == 3);
+        assert_eq!(plan(&scattered[..3], w, ht).len(), 3);
         for pixels in [dense, scattered, mixed] {
             let got = window_at(&fields, &k, &h, &pixels);
             for (px, got) in pixels.iter().zip(got) {
