@@ -22,7 +22,7 @@ pub(super) fn window(
 ) {
     let (w, ht) = (h.width as usize, h.height as usize);
     // Whole rows only: a block of none would never end.
-    debug_assert!(w > 0 && out.len() % w == 0 && first % w == 0);
+    debug_assert!(out.is_empty() || (out.len().is_multiple_of(w) && first.is_multiple_of(w)));
     out.par_chunks_mut((w * BLOCK).max(1))
         .enumerate()
         .for_each(|(b, out)| {
