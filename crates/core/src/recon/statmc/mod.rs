@@ -333,6 +333,24 @@ mod tests {
         assert!(checked > 10_000, "{checked}");
     }
 
+    /// A film of two halves, 1 on the left and `right` on the right, 8
+    /// samples a pixel spread uniformly ±40 % around the level (seed
+    /// `seed`).
+    fn two_regions((w, ht): (usize, usize), right: f32, seed: u64) -> (Header, Vec<Record>) {
+        let mut unit = crate::synth::test_units(seed);
+        let mut recs = Vec::new();
+        for y in 0..ht {
+            for x in 0..w {
+                let level = if x < w / 2 { 1.0 } else { right };
+                for _ in 0..8 {
+                    let v = level * (0.6 + 0.8 * unit() as f32);
+                    recs.push(Record::new(x as f32 + 0.5, y as f32 + 0.5, 0.0, [v; 3]));
+                }
+            }
+        }
+        (test_header(w as u32, ht as u32), recs)
+    }
+
     /// Two regions whose radiance differs by less than the test can see
     /// at 8 samples a pixel average each other without a guide; their
     /// albedo keeps them apart, and an albedo equal everywhere changes
@@ -340,18 +358,7 @@ mod tests {
     #[test]
     fn the_albedo_keeps_apart_what_the_test_cannot() {
         let (w, ht) = (16, 6);
-        let h = test_header(w as u32, ht as u32);
-        let mut unit = crate::synth::test_units(3);
-        let mut recs = Vec::new();
-        for y in 0..ht {
-            for x in 0..w {
-                let level = if x < w / 2 { 1.0 } else { 1.15 };
-                for _ in 0..8 {
-                    let v = level * (0.6 + 0.8 * unit() as f32);
-                    recs.push(Record::new(x as f32 + 0.5, y as f32 + 0.5, 0.0, [v; 3]));
-                }
-            }
-        }
+        let (h, recs) = two_regions((w, ht), 1.15, 3);
         let albedo: Vec<f32> = (0..w * ht)
             .flat_map(|p| [if p % w < w / 2 { 0.2 } else { 0.8 }; 3])
             .collect();
@@ -389,18 +396,7 @@ mod tests {
     #[test]
     fn the_patches_keep_an_edge_the_pixels_own_test_passes() {
         let (w, ht) = (24, 12);
-        let h = test_header(w as u32, ht as u32);
-        let mut unit = crate::synth::test_units(5);
-        let mut recs = Vec::new();
-        for y in 0..ht {
-            for x in 0..w {
-                let level = if x < w / 2 { 1.0 } else { 1.3 };
-                for _ in 0..8 {
-                    let v = level * (0.6 + 0.8 * unit() as f32);
-                    recs.push(Record::new(x as f32 + 0.5, y as f32 + 0.5, 0.0, [v; 3]));
-                }
-            }
-        }
+        let (h, recs) = two_regions((w, ht), 1.3, 5);
         let fields = fields::Fields::new(&stats_of(&recs, &h, |_| true), w, ht, None);
         let kernel = welch::Kernel::new(8);
         let across = |y: usize| fields.compatible(y * w + w / 2 - 1, y * w + w / 2, &kernel);
