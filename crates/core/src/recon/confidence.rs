@@ -20,7 +20,7 @@
 //! when a pixel's samples are large and nearly equal (a light's 60 ± 10⁻⁶).
 
 use super::Image;
-use super::per_pixel::{self, RowBand};
+use super::per_pixel;
 use crate::dump::{Header, Record};
 use crate::par::prelude::*;
 
@@ -47,6 +47,7 @@ pub struct Interval {
 impl Interval {
     /// The film's intervals before any band's are put: no pixel has a
     /// sample.
+    #[cfg(test)]
     pub(crate) fn empty(h: &Header, z: f64) -> Interval {
         Interval {
             centre: Image::for_header(h),
@@ -58,7 +59,8 @@ impl Interval {
     }
 
     /// `band`'s own pixels' intervals, made from its folds, put in place.
-    pub(crate) fn put(&mut self, band: &RowBand, from: &Interval) {
+    #[cfg(test)]
+    pub(crate) fn put(&mut self, band: &per_pixel::RowBand, from: &Interval) {
         band.put(&mut self.centre.data, &from.centre.data);
         band.put(&mut self.half_width.data, &from.half_width.data);
         band.put(&mut self.count, &from.count);

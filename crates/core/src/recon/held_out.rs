@@ -35,8 +35,6 @@ pub const RADIUS: usize = super::statmc::RADIUS;
 /// accepted ones.
 #[derive(Clone, Default)]
 pub(crate) struct HalfFold<S> {
-    /// The pixel's valid samples seen so far, of both halves.
-    seen: u32,
     pub(crate) all: Moments,
     pub(crate) accepted: S,
 }
@@ -48,37 +46,45 @@ impl AsRef<Stats> for HalfFold<Stats> {
     }
 }
 
-/// Bytes of one band's [`HalfFold`]s: a half's intervals and statmc's
-/// window are made band by band ([`fold_half`]), where the folds of the
-/// whole film were 348 MB of a 1080p frame (docs/BENCHMARKS.md). A few
-/// rows in this crate's own tests, so that their small films are banded.
-pub(crate) const BAND_BYTES: usize = if cfg!(test) { 4 << 10 } else { 32 << 20 };
+/// Per pixel, both halves' [`HalfFold`]s: `half[0]` of the even ordinals
+/// among its valid samples in file order, `half[1]` of the odd ones.
+#[derive(Clone, Default)]
+pub(crate) struct Halves<S> {
+    /// The pixel's valid samples seen so far, of both halves.
+    seen: u32,
+    pub(crate) half: [HalfFold<S>; 2],
+}
 
-/// The film's bands for [`fold_half`] of `S`, of about `budget` bytes of
-/// folds ([`BAND_BYTES`]), with `halo` rows either side: what is made
+/// Bytes of one band's [`Halves`]: the halves' intervals and statmc's
+/// window are made band by band ([`fold_halves`]), where the folds of
+/// the whole film were 348 MB a half at 1080p (docs/BENCHMARKS.md). A
+/// few rows in this crate's own tests, so that their small films are
+/// banded.
+pub(crate) const BAND_BYTES: usize = if cfg!(test) { 8 << 10 } else { 64 << 20 };
+
+/// The film's bands for [`fold_halves`] of `S`, of about `budget` bytes
+/// of folds ([`BAND_BYTES`]), with `halo` rows either side: what is made
 /// from a band's folds reads that far (one row for the intervals' 3 × 3
 /// neighbourhoods).
 pub(crate) fn bands<S>(h: &Header, halo: usize, budget: usize) -> Vec<RowBand> {
-    per_pixel::row_bands(h, size_of::<HalfFold<S>>(), budget, halo)
+    per_pixel::row_bands(h, size_of::<Halves<S>>(), budget, halo)
 }
 
-/// Each band's [`HalfFold`]s of its pixels' first half (`second` false:
-/// the even ordinals among a pixel's valid samples in file order) or
-/// second (the odd ones), given to `each(band, folds)` in turn, or the
-/// film's as one band where the dump cannot be read in place
-/// ([`per_pixel::fold_in_bands`]); `accepted(i)` says whether record i
-/// was accepted, `add` is `S`'s update. Only the pixels `wanted` marks
-/// are folded (all where it is None); the others' folds stay empty.
+/// Each band's [`Halves`] of its pixels, given to `each(band, folds)` in
+/// turn, or the film's as one band where the dump cannot be read in
+/// place ([`per_pixel::fold_in_bands`]): both halves from one read of
+/// the dump. `accepted(i)` says whether record i was accepted, `add` is
+/// `S`'s update. Only the pixels `wanted` marks are folded (all where it
+/// is None); the others' folds stay empty.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn fold_half<S: Default + Clone + Send>(
+pub(crate) fn fold_halves<S: Default + Clone + Send>(
     records: &[Record],
     h: &Header,
     bands: &[RowBand],
-    second: bool,
     wanted: Option<&[bool]>,
     accepted: impl Fn(usize) -> bool + Sync,
     add: impl Fn(&mut S, [f64; 3]) + Sync,
-    each: impl FnMut(&RowBand, &[HalfFold<S>]),
+    each: impl FnMut(&RowBand, &[Halves<S>]),
 ) {
     let jobs = crate::par::current_num_threads();
     let item = |i: usize, r: &Record| {
@@ -86,17 +92,20 @@ pub(crate) fn fold_half<S: Default + Clone + Send>(
         let picked = wanted.is_none_or(|w| w[r.pixel_index(h)]);
         picked.then(|| (colour, accepted(i)))
     };
-    let fold = |f: &mut HalfFold<S>, (x, acc): ([f64; 3], bool)| {
-        let mine = (f.seen % 2 == 1) == second;
+    let fold = |f: &mut Halves<S>, (x, acc): ([f64; 3], bool)| {
+        let half = &mut f.half[f.seen as usize % 2];
         f.seen += 1;
-        if mine {
-            f.all.add(x);
-            if acc {
-                add(&mut f.accepted, x);
-            }
+        half.all.add(x);
+        if acc {
+            add(&mut half.accepted, x);
         }
     };
     per_pixel::fold_in_bands(records, h, bands, jobs, item, fold, each)
+}
+
+/// Half `k`'s folds of a band's [`Halves`], which statmc's window reads.
+pub(crate) fn half_of<S>(folds: &[Halves<S>], k: usize) -> Vec<&HalfFold<S>> {
+    folds.iter().map(|f| &f.half[k]).collect()
 }
 
 /// The pixels the halves decide, in order: some channel white in both G
@@ -139,20 +148,62 @@ impl Decided {
     /// band's own rows, each written to its place in `out` (one per
     /// decided pixel, in their order): a band given again, as the film
     /// after bands that were read in place, writes the same places.
-    pub(crate) fn window_at(
+    pub(crate) fn window_at<S: AsRef<Stats> + Sync>(
         &self,
         band: &RowBand,
-        folds: &[HalfFold<Stats>],
+        folds: &[S],
         guide: Option<super::statmc::Guide>,
         out: &mut [[f64; 3]],
     ) {
+        let (places, at) = self.in_band(band);
+        let window = super::statmc::Window::new(folds, &band.header, guide);
+        out[places].copy_from_slice(&window.denoise_at(&band.header, &at));
+    }
+
+    /// `from(i)` of the decided pixels of `band`'s own rows (i their
+    /// index among the band's folded pixels), each written to its place
+    /// in `out` (one per decided pixel, in their order).
+    pub(crate) fn gather<T>(&self, band: &RowBand, from: impl Fn(usize) -> T, out: &mut [T]) {
+        let (places, at) = self.in_band(band);
+        for (o, i) in out[places].iter_mut().zip(at) {
+            *o = from(i);
+        }
+    }
+
+    /// Where the decided pixels of `band`'s own rows lie in the order, and
+    /// each one's index among the band's folded pixels.
+    fn in_band(&self, band: &RowBand) -> (std::ops::Range<usize>, Vec<usize>) {
         let first = band.pixels.start;
         let own = first + band.own.start..first + band.own.end;
         let from = self.0.partition_point(|&px| px < own.start);
         let to = self.0.partition_point(|&px| px < own.end);
-        let at: Vec<usize> = self.0[from..to].iter().map(|px| px - first).collect();
-        let window = super::statmc::Window::new(folds, &band.header, guide);
-        out[from..to].copy_from_slice(&window.denoise_at(&band.header, &at));
+        (
+            from..to,
+            self.0[from..to].iter().map(|px| px - first).collect(),
+        )
+    }
+
+    /// Intervals at the decided pixels, in their order, before any
+    /// band's are [`Decided::put_interval`]: none has a sample.
+    pub(crate) fn empty_interval(&self, z: f64) -> Interval {
+        let row = || self.map(|_| [0.0; 3]);
+        Interval {
+            centre: row(),
+            half_width: row(),
+            count: vec![0; self.0.len()],
+            own_se: row(),
+            z,
+        }
+    }
+
+    /// `from`, a band's intervals made from its folds, at the decided
+    /// pixels of its own rows, put in their places in `at`
+    /// ([`Decided::empty_interval`]).
+    pub(crate) fn put_interval(&self, band: &RowBand, from: &Interval, at: &mut Interval) {
+        self.gather(band, |i| from.centre.data[i], &mut at.centre.data);
+        self.gather(band, |i| from.half_width.data[i], &mut at.half_width.data);
+        self.gather(band, |i| from.count[i], &mut at.count);
+        self.gather(band, |i| from.own_se.data[i], &mut at.own_se.data);
     }
 
     /// How many pixels are decided.
@@ -177,6 +228,7 @@ impl Decided {
 
     /// `all`'s intervals at the decided pixels, in their order, as one row
     /// (their variances already pooled over the film's neighbours).
+    #[cfg(test)]
     pub fn interval(&self, all: &Interval) -> Interval {
         Interval {
             centre: self.image(&all.centre),

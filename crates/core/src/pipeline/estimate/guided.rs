@@ -24,8 +24,8 @@ impl Estimators<'_, '_> {
         let (mut out, t) =
             timed(|| self.guided_statmc(denoised, removed, occupancy, accepted, all));
         let (_, t2) = timed(|| {
-            self.held_out(&mut out, Whites::Channels, |second, decided| {
-                Ok::<_, std::convert::Infallible>(self.guided_of_half(second, decided))
+            self.held_out(&mut out, Whites::Channels, |decided| {
+                Ok::<_, std::convert::Infallible>(self.guided_halves(decided))
             })
         });
         (Arc::new(out), s + accepted_s + all_s + t + t2)
@@ -35,8 +35,8 @@ impl Estimators<'_, '_> {
     pub(super) fn guided_oidn_image(&self) -> Result<(Arc<Image>, f64), OidnError> {
         let (denoised, s) = self.oidn_mean()?;
         let (mut out, s) = self.guided(&denoised, s);
-        let half = |second, decided: &_| self.guided_oidn_of_half(second, decided);
-        let (decided, t) = timed(|| self.held_out(&mut out, Whites::Pixels, half));
+        let halves = |decided: &_| self.guided_oidn_halves(decided);
+        let (decided, t) = timed(|| self.held_out(&mut out, Whites::Pixels, halves));
         decided?;
         Ok((Arc::new(out), s + t))
     }
@@ -55,14 +55,14 @@ impl Estimators<'_, '_> {
     }
 
     /// `g`, a guided image, with its `whites` decided by the held-out
-    /// halves ([`held_out`]): `make(second, decided)` makes the same image
-    /// from one half's samples alone, kept with that half's intervals at
-    /// the decided pixels. Nothing is made where nothing is white.
+    /// halves ([`held_out`]): `make(decided)` makes the same image from
+    /// each half's samples alone, kept with that half's intervals at the
+    /// decided pixels. Nothing is made where nothing is white.
     fn held_out<E>(
         &self,
         g: &mut Image,
         whites: Whites,
-        make: impl Fn(bool, &Decided) -> Result<Half, E>,
+        make: impl FnOnce(&Decided) -> Result<[Half; 2], E>,
     ) -> Result<(), E> {
         if !self.config.held_out {
             return Ok(());
@@ -73,95 +73,81 @@ impl Estimators<'_, '_> {
         if decided.is_empty() {
             return Ok(());
         }
-        let first = make(false, &decided)?;
-        let second = make(true, &decided)?;
+        let [first, second] = make(&decided)?;
         let (accepted, _) = self.accepted_interval();
         let halves = [&first, &second];
         held_out::prefer_mean(g, all, &accepted.count, halves, &decided, white, whites);
         Ok(())
     }
 
-    /// One half's folds of its samples and of its accepted ones at the
-    /// pixels `wanted` marks (all where None), band by band of the film with `halo`
-    /// rows either side ([`held_out::fold_half`]): `each(band, folds)`
-    /// for each.
-    fn fold_half<S: Default + Clone + Send>(
+    /// Both halves' intervals at the `decided` pixels, of their samples
+    /// and as [`guided::floor`]s of their accepted ones, from one read of
+    /// the dump at the pixels `wanted` marks (all where None), band by
+    /// band with `halo` rows either side (one at least); `also(band, k,
+    /// folds, all)` is given each band's folds of half k with their
+    /// intervals.
+    fn halves_at<S: Default + Clone + Send>(
         &self,
-        second: bool,
-        halo: usize,
-        wanted: Option<&[bool]>,
-        add: impl Fn(&mut S, [f64; 3]) + Sync,
-        each: impl FnMut(&RowBand, &[HalfFold<S>]),
-    ) {
-        let decisions = self
-            .decisions
-            .expect("an image that needs the decisions is made with them");
-        let (records, h) = (self.shared.records, self.shared.header);
-        let accepted = |i| Decision::accepted(decisions[i]);
-        let bands = held_out::bands::<S>(h, halo, held_out::BAND_BYTES);
-        held_out::fold_half(records, h, &bands, second, wanted, accepted, add, each);
-    }
-
-    /// One half's intervals of its samples and of its accepted ones at
-    /// the pixels `wanted` marks (all where None; empty elsewhere), with `also(band,
-    /// folds)` given each band's folds (`halo` rows either side, one at
-    /// least).
-    fn half_intervals<S: Default + Clone + Send>(
-        &self,
-        second: bool,
+        decided: &Decided,
         halo: usize,
         wanted: Option<&[bool]>,
         add: impl Fn(&mut S, [f64; 3]) + Sync,
         accepted_moments: impl Fn(&HalfFold<S>) -> &Moments,
-        mut also: impl FnMut(&RowBand, &[HalfFold<S>]),
-    ) -> (Interval, Interval) {
-        let (h, guide_z) = (self.shared.header, self.config.guide_z);
-        let mut all = Interval::empty(h, confidence::Z);
-        let mut accepted = Interval::empty(h, guide_z);
-        self.fold_half(second, halo, wanted, add, |band, folds| {
-            let bh = &band.header;
-            all.put(
-                band,
-                &confidence::from_moments_of(folds, |f| &f.all, bh, confidence::Z),
-            );
-            let a = confidence::from_moments_of(folds, &accepted_moments, bh, guide_z);
-            accepted.put(band, &a);
-            also(band, folds);
+        mut also: impl FnMut(&RowBand, usize, &[&HalfFold<S>], &Interval),
+    ) -> [HalfAt; 2] {
+        let decisions = self
+            .decisions
+            .expect("an image that needs the decisions is made with them");
+        let (records, h) = (self.shared.records, self.shared.header);
+        let guide_z = self.config.guide_z;
+        let mut at = [(); 2].map(|_| HalfAt {
+            all: decided.empty_interval(confidence::Z),
+            floors: decided.map(|_| [0.0; 3]),
         });
-        (all, accepted)
+        let bands = held_out::bands::<S>(h, halo, held_out::BAND_BYTES);
+        let accepted = |i| Decision::accepted(decisions[i]);
+        held_out::fold_halves(records, h, &bands, wanted, accepted, add, |band, folds| {
+            let bh = &band.header;
+            for (k, at) in at.iter_mut().enumerate() {
+                let half = held_out::half_of(folds, k);
+                let all = confidence::from_moments_of(&half, |f| &f.all, bh, confidence::Z);
+                let a = confidence::from_moments_of(&half, |f| accepted_moments(f), bh, guide_z);
+                decided.put_interval(band, &all, &mut at.all);
+                decided.gather(band, |i| guided::floor(&a, i), &mut at.floors.data);
+                also(band, k, &half, &all);
+            }
+        });
+        at
     }
 
-    /// `guided_oidn`'s image made from one half's samples alone, kept with
-    /// the half's intervals at the `decided` pixels.
-    fn guided_oidn_of_half(&self, second: bool, decided: &Decided) -> Result<Half, OidnError> {
-        let (all, accepted) =
-            self.half_intervals(second, 1, None, Moments::add, |f| &f.accepted, |_, _| {});
-        // The guide is read at the decided pixels alone, and OIDN, the
-        // run's peak, needs only the half's means and counts: the rest of
-        // the film's intervals goes before it works.
-        let at = decided.interval(&all);
-        let floors = decided.map(|px| guided::floor(&accepted, px));
-        drop(accepted);
-        let Interval {
-            centre,
-            count,
-            half_width,
-            own_se,
-            ..
-        } = all;
-        drop((half_width, own_se));
-        let d = imagespace::oidn::denoise(&centre, &count, self.aux)?;
-        drop((centre, count));
-        Ok(self.steered_half(&decided.image(&d.image), &at, &floors))
+    /// `guided_oidn`'s image made from each half's samples alone, kept
+    /// with the half's intervals at the `decided` pixels.
+    fn guided_oidn_halves(&self, decided: &Decided) -> Result<[Half; 2], OidnError> {
+        // OIDN, the run's peak, needs only each half's means and counts:
+        // the rest of the film's intervals is not kept.
+        let h = self.shared.header;
+        let mut mean = [Image::for_header(h), Image::for_header(h)];
+        let mut count = [(); 2].map(|_| vec![0; h.pixels() * h.frames as usize]);
+        let film = |band: &RowBand, k: usize, _: &[&_], all: &Interval| {
+            band.put(&mut mean[k].data, &all.centre.data);
+            band.put(&mut count[k], &all.count);
+        };
+        let at = self.halves_at(decided, 1, None, Moments::add, |f| &f.accepted, film);
+        let mut halves = Vec::with_capacity(2);
+        for ((mean, count), at) in mean.into_iter().zip(count).zip(&at) {
+            let d = imagespace::oidn::denoise(&mean, &count, self.aux)?;
+            drop((mean, count));
+            halves.push(self.steered_half(&decided.image(&d.image), at));
+        }
+        Ok(halves.try_into().ok().expect("two halves"))
     }
 
     /// A half's `denoised` image at the decided pixels, in their order,
-    /// steered by its intervals there: `at` of all its samples, `floors`
-    /// those of its accepted ones ([`guided::guide_from`]).
-    fn steered_half(&self, denoised: &Image, at: &Interval, floors: &Image) -> Half {
+    /// steered by its intervals there ([`guided::guide_from`]).
+    fn steered_half(&self, denoised: &Image, at: &HalfAt) -> Half {
         let white = 1.0 / self.config.exposure;
-        let g = guided::guide_from(denoised, |i| floors.data[i], at, white);
-        Half::new(&g, at)
+        let g = guided::guide_from(denoised, |i| at.floors.data[i], &at.all, white);
+        Half::new(&g, &at.all)
     }
 
     /// `guided`'s image of statmc's `denoised`: the energy the filter
@@ -191,7 +177,7 @@ impl Estimators<'_, '_> {
         g
     }
 
-    /// `guided`'s image made from one half's samples alone at the
+    /// `guided`'s image made from each half's samples alone at the
     /// `decided` pixels, kept with the half's intervals there: statmc of
     /// the half's accepted samples steered by those intervals
     /// ([`guided::guide`]). The removed energy's spread and the blocks,
@@ -199,34 +185,44 @@ impl Estimators<'_, '_> {
     /// they moved the decision by little (docs/RESULTS.md, "The guided
     /// image"), and without them only the pixels statmc's window reads
     /// there are folded, and the window made there alone.
-    fn guided_of_half(&self, second: bool, decided: &Decided) -> Half {
+    fn guided_halves(&self, decided: &Decided) -> [Half; 2] {
         let h = self.shared.header;
         let wanted = decided.around(h, statmc::HALO);
         let wanted = (!wanted.iter().all(|&w| w)).then_some(&wanted[..]);
         let guide = self.guide();
-        let mut denoised = vec![[0.0; 3]; decided.len()];
-        let denoise = |band: &RowBand, folds: &[HalfFold<Stats>]| {
+        let mut denoised = [(); 2].map(|_| vec![[0.0; 3]; decided.len()]);
+        let window = |band: &RowBand, k: usize, folds: &[&HalfFold<Stats>], _: &Interval| {
             let g = guide.map(|g| g.of(band.pixels.clone()));
-            decided.window_at(band, folds, g, &mut denoised);
+            decided.window_at(band, folds, g, &mut denoised[k]);
         };
         let add = statmc::stats_adder();
-        let (all, accepted) = self.half_intervals(
-            second,
+        let at = self.halves_at(
+            decided,
             statmc::HALO,
             wanted,
             add,
             |f| f.accepted.as_ref(),
-            denoise,
+            window,
         );
-        let denoised = Image {
-            width: denoised.len(),
-            height: 1,
-            frames: 1,
-            data: denoised,
-        };
-        let floors = decided.map(|px| guided::floor(&accepted, px));
-        self.steered_half(&denoised, &decided.interval(&all), &floors)
+        let mut k = 0..2;
+        denoised.map(|data| {
+            let at = &at[k.next().expect("two halves")];
+            let denoised = Image {
+                width: data.len(),
+                height: 1,
+                frames: 1,
+                data,
+            };
+            self.steered_half(&denoised, at)
+        })
     }
+}
+
+/// One half's intervals at the decided pixels, in their order: of all
+/// its samples, and the [`guided::floor`]s of its accepted ones.
+struct HalfAt {
+    all: Interval,
+    floors: Image,
 }
 
 #[cfg(test)]

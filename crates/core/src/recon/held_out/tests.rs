@@ -4,27 +4,22 @@
 use super::*;
 use crate::recon::test_header as header;
 
-/// Every pixel's [`HalfFold`], the film folded as one band.
+/// Every pixel's [`Halves`], the film folded as one band.
 fn whole<S: Default + Clone + Send>(
     records: &[Record],
     h: &Header,
-    second: bool,
     accepted: impl Fn(usize) -> bool + Sync,
     add: impl Fn(&mut S, [f64; 3]) + Sync,
-) -> Vec<HalfFold<S>> {
+) -> Vec<Halves<S>> {
     let mut film = Vec::new();
-    let keep = |_: &RowBand, folds: &[HalfFold<S>]| film = folds.to_vec();
-    fold_half(
-        records,
-        h,
-        &[RowBand::film(h)],
-        second,
-        None,
-        accepted,
-        add,
-        keep,
-    );
+    let keep = |_: &RowBand, folds: &[Halves<S>]| film = folds.to_vec();
+    fold_halves(records, h, &[RowBand::film(h)], None, accepted, add, keep);
     film
+}
+
+/// Half `k` of every pixel's [`Halves`].
+fn half_k<S: Clone>(halves: &[Halves<S>], k: usize) -> Vec<HalfFold<S>> {
+    halves.iter().map(|f| f.half[k].clone()).collect()
 }
 
 /// The halves alternate within each pixel, in file order, and skip
@@ -46,7 +41,8 @@ fn halves_alternate_within_each_pixel() {
     ];
     let push = |v: &mut Vec<f64>, x: [f64; 3]| v.push(x[0]);
     let all_but_the_last = |i: usize| i != 7;
-    let [first, second] = [false, true].map(|k| whole(&records, &h, k, all_but_the_last, push));
+    let halves = whole(&records, &h, all_but_the_last, push);
+    let [first, second] = [0, 1].map(|k| half_k(&halves, k));
     assert_eq!((first[0].all.n, first[0].all.mean[0]), (2, 2.5));
     assert_eq!((second[0].all.n, second[0].all.mean[0]), (2, 5.0));
     assert_eq!((first[1].all.n, second[1].all.n), (2, 1));
@@ -78,15 +74,16 @@ fn a_placed_dump_folds_its_halves_as_a_scan_does() {
         };
         let accepted = |i: usize| !i.is_multiple_of(3);
         let push = |v: &mut Vec<f64>, x: [f64; 3]| v.push(x[0]);
-        for second in [false, true] {
-            let placed = whole(&records, &h, second, accepted, push);
-            let scanned = whole(&records, &scan, second, accepted, push);
-            for (a, b) in placed.iter().zip(&scanned) {
+        let placed = whole(&records, &h, accepted, push);
+        let scanned = whole(&records, &scan, accepted, push);
+        for (a, b) in placed.iter().zip(&scanned) {
+            for (a, b) in a.half.iter().zip(&b.half) {
                 assert_eq!((a.all.n, a.all.mean), (b.all.n, b.all.mean));
                 assert_eq!(a.accepted, b.accepted);
             }
-            assert!(placed.iter().all(|f| f.seen == 6 && f.all.n == 3));
         }
+        let three_each = |f: &Halves<_>| f.half.iter().all(|k| k.all.n == 3);
+        assert!(placed.iter().all(|f| f.seen == 6 && three_each(f)));
     }
 }
 
@@ -115,7 +112,7 @@ fn bands_make_the_films_intervals_and_window() {
         let (h, records): (Header, Vec<Record>) = (synth.header(), synth.records().collect());
         let accepted = |i: usize| i % 7 != 3;
         let add = statmc::stats_adder();
-        let film = whole(&records, &h, true, accepted, add);
+        let film = half_k(&whole(&records, &h, accepted, add), 1);
         let interval = confidence::from_moments_of(&film, |f| &f.all, &h, 3.0);
         // Features of a few levels, different in each frame.
         let mut unit = crate::synth::test_units(5);
@@ -130,29 +127,29 @@ fn bands_make_the_films_intervals_and_window() {
         // Bands of 2 rows (a budget of two rows of folds), the halos as
         // the halves' (one row for the intervals, HALO for the window),
         // and one row fewer.
-        let budget = 2 * 24 * size_of::<HalfFold<Stats>>();
+        let budget = 2 * 24 * size_of::<Halves<Stats>>();
         let banded = |halo: usize, guide: Option<statmc::Guide>| {
             let bands = bands::<Stats>(&h, halo, budget);
             assert_eq!(bands.len(), 40);
             let mut own = vec![0; film.len()];
             let mut banded = Interval::empty(&h, 3.0);
             let mut banded_denoised = Image::for_header(&h);
-            fold_half(
+            fold_halves(
                 &records,
                 &h,
                 &bands,
-                true,
                 None,
                 accepted,
                 add,
-                |band, folds| {
+                |band, folds: &[Halves<Stats>]| {
                     band.own_of(&mut own).iter_mut().for_each(|n| *n += 1);
+                    let folds = half_of(folds, 1);
                     let bh = &band.header;
-                    let i = confidence::from_moments_of(folds, |f| &f.all, bh, 3.0);
+                    let i = confidence::from_moments_of(&folds, |f| &f.all, bh, 3.0);
                     banded.put(band, &i);
                     let out = band.own_of(&mut banded_denoised.data);
                     let g = guide.map(|g| g.of(band.pixels.clone()));
-                    statmc::Window::new(folds, bh, g).denoise_into(bh, band.own.start, out);
+                    statmc::Window::new(&folds, bh, g).denoise_into(bh, band.own.start, out);
                 },
             );
             assert!(own.iter().all(|&n| n == 1));
@@ -210,29 +207,26 @@ fn a_half_folded_around_the_decided_pixels_is_the_whole_halfs_there() {
     let decided = Decided(px);
     let accepted = |i: usize| i % 7 != 3;
     let add = statmc::stats_adder();
-    let whole_film =
-        statmc::Window::new(&whole(&records, &h, false, accepted, add), &h, None).denoise(&h);
+    let first = half_k(&whole(&records, &h, accepted, add), 0);
+    let whole_film = statmc::Window::new(&first, &h, None).denoise(&h);
     let half = |wanted: &[bool], bands: &[RowBand]| {
         let mut denoised = vec![[0.0; 3]; decided.len()];
-        let mut all = Interval::empty(&h, 3.0);
-        fold_half(
+        let mut at = decided.empty_interval(3.0);
+        fold_halves(
             &records,
             &h,
             bands,
-            false,
             Some(wanted),
             accepted,
             add,
-            |band, folds| {
-                decided.window_at(band, folds, None, &mut denoised);
+            |band, folds: &[Halves<Stats>]| {
+                let folds = half_of(folds, 0);
+                decided.window_at(band, &folds, None, &mut denoised);
                 let bh = &band.header;
-                all.put(
-                    band,
-                    &confidence::from_moments_of(folds, |f| &f.all, bh, 3.0),
-                );
+                let all = confidence::from_moments_of(&folds, |f| &f.all, bh, 3.0);
+                decided.put_interval(band, &all, &mut at);
             },
         );
-        let at = decided.interval(&all);
         let bits =
             |v: &[[f64; 3]]| -> Vec<u64> { v.iter().flatten().map(|v| v.to_bits()).collect() };
         (
@@ -249,7 +243,7 @@ fn a_half_folded_around_the_decided_pixels_is_the_whole_halfs_there() {
     assert_eq!(everything.0, whole_bits);
     let around = decided.around(&h, statmc::HALO);
     assert!(around.iter().filter(|&&w| w).count() < film / 2);
-    for budget in [usize::MAX, 2 * 300 * size_of::<HalfFold<Stats>>()] {
+    for budget in [usize::MAX, 2 * 300 * size_of::<Halves<Stats>>()] {
         let bands = bands::<Stats>(&h, statmc::HALO, budget);
         assert!(bands.len() >= 2);
         assert_eq!(half(&around, &bands), everything);
