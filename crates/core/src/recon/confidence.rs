@@ -67,6 +67,15 @@ impl Interval {
         band.put(&mut self.own_se.data, &from.own_se.data);
     }
 
+    /// `from`, intervals of a row of pixels, put at the pixels `places`
+    /// of these.
+    pub(crate) fn put_at(&mut self, places: std::ops::Range<usize>, from: &Interval) {
+        self.centre.data[places.clone()].copy_from_slice(&from.centre.data);
+        self.half_width.data[places.clone()].copy_from_slice(&from.half_width.data);
+        self.count[places.clone()].copy_from_slice(&from.count);
+        self.own_se.data[places].copy_from_slice(&from.own_se.data);
+    }
+
     /// `v` held inside pixel `px`'s interval, channel by channel.
     #[inline]
     pub fn clamp(&self, px: usize, v: [f64; 3]) -> [f64; 3] {
@@ -237,14 +246,7 @@ pub(crate) fn from_moments_of<M>(
 ) -> Interval {
     let (w, ht) = (h.width as usize, h.height as usize);
     let moments: Vec<&Moments> = moments.iter().map(get).collect();
-    // The standard error of each pixel's mean from its own samples alone.
-    let own_se: Vec<[f64; 3]> = moments
-        .par_iter()
-        .map(|m| match m.variance() {
-            Some(v) => v.map(|v| (v / m.n as f64).sqrt()),
-            None => [0.0; 3],
-        })
-        .collect();
+    let own_se: Vec<[f64; 3]> = moments.par_iter().map(|m| own_se(m)).collect();
     let mut centre = Image::for_header(h);
     let mut half_width = Image::for_header(h);
     centre
@@ -253,41 +255,9 @@ pub(crate) fn from_moments_of<M>(
         .zip(half_width.data.par_iter_mut())
         .enumerate()
         .for_each(|(px, (centre, half_width))| {
-            let m = moments[px];
-            if m.n == 0 {
-                return;
+            if let Some(half) = pooled_half_width(&moments, |q| own_se[q], px, w, ht, z) {
+                (*centre, *half_width) = (moments[px].mean, half);
             }
-            let (frame, i) = (px / (w * ht), px % (w * ht));
-            let (x, y) = (i % w, i / w);
-            let mut pooled = [0.0; 3];
-            let mut count = [0.0; 3];
-            for ny in y.saturating_sub(1)..(y + 2).min(ht) {
-                for nx in x.saturating_sub(1)..(x + 2).min(w) {
-                    let q = frame * w * ht + ny * w + nx;
-                    let Some(v) = moments[q].variance() else {
-                        continue;
-                    };
-                    for c in 0..3 {
-                        let gap = (moments[q].mean[c] - m.mean[c]).abs();
-                        if gap <= z * (own_se[q][c] + own_se[px][c]) {
-                            pooled[c] += v[c];
-                            count[c] += 1.0;
-                        }
-                    }
-                }
-            }
-            let own = m.variance();
-            *centre = m.mean;
-            *half_width = std::array::from_fn(|c| {
-                let s2 = match (own, count[c] > 0.0) {
-                    (Some(own), true) => own[c].max(pooled[c] / count[c]),
-                    (None, true) => pooled[c] / count[c],
-                    (Some(own), false) => own[c],
-                    // Nothing says how wide: no bound.
-                    (None, false) => f64::INFINITY,
-                };
-                z * (s2 / m.n as f64).sqrt()
-            });
         });
     let count = moments.iter().map(|m| m.n).collect();
     Interval {
@@ -302,6 +272,101 @@ pub(crate) fn from_moments_of<M>(
         },
         z,
     }
+}
+
+/// [`from_moments_of`] at the pixels `at` alone, in their order, as one
+/// row: the same values, each made from its 3 × 3 neighbourhood's
+/// moments.
+pub(crate) fn from_moments_at<M>(
+    moments: &[M],
+    get: impl Fn(&M) -> &Moments,
+    h: &Header,
+    z: f64,
+    at: &[usize],
+) -> Interval {
+    let (w, ht) = (h.width as usize, h.height as usize);
+    let moments: Vec<&Moments> = moments.iter().map(get).collect();
+    let row = |data: Vec<[f64; 3]>| Image {
+        width: data.len(),
+        height: 1,
+        frames: 1,
+        data,
+    };
+    let interval = |&px: &usize| {
+        let m = moments[px];
+        let se = |q: usize| own_se(moments[q]);
+        match pooled_half_width(&moments, se, px, w, ht, z) {
+            Some(half) => (m.mean, half),
+            None => ([0.0; 3], [0.0; 3]),
+        }
+    };
+    let (centre, half_width): (Vec<_>, Vec<_>) = at.par_iter().map(interval).unzip();
+    Interval {
+        centre: row(centre),
+        half_width: row(half_width),
+        count: at.iter().map(|&px| moments[px].n).collect(),
+        own_se: row(at.iter().map(|&px| own_se(moments[px])).collect()),
+        z,
+    }
+}
+
+/// The standard error of a pixel's mean from its own samples alone (0
+/// below two samples).
+fn own_se(m: &Moments) -> [f64; 3] {
+    match m.variance() {
+        Some(v) => v.map(|v| (v / m.n as f64).sqrt()),
+        None => [0.0; 3],
+    }
+}
+
+/// Pixel `px`'s half width z·s/√n, s² pooled over the compatible pixels
+/// of its 3 × 3 neighbourhood (the module's rule) on a film `w` × `ht`
+/// (frames in turn), `se(q)` pixel q's [`own_se`]; None where it has no
+/// sample.
+fn pooled_half_width(
+    moments: &[&Moments],
+    se: impl Fn(usize) -> [f64; 3],
+    px: usize,
+    w: usize,
+    ht: usize,
+    z: f64,
+) -> Option<[f64; 3]> {
+    let m = moments[px];
+    if m.n == 0 {
+        return None;
+    }
+    let (frame, i) = (px / (w * ht), px % (w * ht));
+    let (x, y) = (i % w, i / w);
+    let own_se = se(px);
+    let mut pooled = [0.0; 3];
+    let mut count = [0.0; 3];
+    for ny in y.saturating_sub(1)..(y + 2).min(ht) {
+        for nx in x.saturating_sub(1)..(x + 2).min(w) {
+            let q = frame * w * ht + ny * w + nx;
+            let Some(v) = moments[q].variance() else {
+                continue;
+            };
+            let se_q = se(q);
+            for c in 0..3 {
+                let gap = (moments[q].mean[c] - m.mean[c]).abs();
+                if gap <= z * (se_q[c] + own_se[c]) {
+                    pooled[c] += v[c];
+                    count[c] += 1.0;
+                }
+            }
+        }
+    }
+    let own = m.variance();
+    Some(std::array::from_fn(|c| {
+        let s2 = match (own, count[c] > 0.0) {
+            (Some(own), true) => own[c].max(pooled[c] / count[c]),
+            (None, true) => pooled[c] / count[c],
+            (Some(own), false) => own[c],
+            // Nothing says how wide: no bound.
+            (None, false) => f64::INFINITY,
+        };
+        z * (s2 / m.n as f64).sqrt()
+    }))
 }
 
 #[cfg(test)]
@@ -377,6 +442,67 @@ mod tests {
             (ci.half_width.data[2][0] - want).abs() < 1e-7,
             "{:?}",
             ci.half_width.data[2]
+        );
+    }
+
+    /// The intervals made at chosen pixels alone are the film's there,
+    /// bit for bit: corners, edges, both frames, pixels with no sample
+    /// or one, a bright pixel beside dim ones.
+    #[test]
+    fn intervals_at_pixels_are_the_films() {
+        let synth = crate::synth::SynthParams {
+            width: 9,
+            height: 7,
+            frames: 2,
+            spp: 5,
+            firefly_fraction: 0.1,
+            ..crate::synth::SynthParams::default()
+        };
+        let h = synth.header();
+        // Pixel 10 of each frame loses every sample, pixel 20 all but one.
+        let records: Vec<Record> = synth
+            .records()
+            .enumerate()
+            .filter(|(i, _)| {
+                let (px, s) = (i / 5, i % 5);
+                px % 63 != 10 && (px % 63 != 20 || s == 0)
+            })
+            .map(|(_, r)| r)
+            .collect();
+        let moments = per_pixel::fold(&records, &h, 1, |_| true, Moments::add);
+        let film = from_moments(&moments, &h, Z);
+        let at = [
+            0,
+            8,
+            10,
+            20,
+            21,
+            31,
+            54,
+            62,
+            63,
+            63 + 10,
+            63 + 20,
+            63 + 40,
+            125,
+        ];
+        let got = from_moments_at(&moments, |m| m, &h, Z, &at);
+        let bits =
+            |v: &[[f64; 3]]| -> Vec<u64> { v.iter().flatten().map(|x| x.to_bits()).collect() };
+        let film_at =
+            |img: &Image| -> Vec<[f64; 3]> { at.iter().map(|&px| img.data[px]).collect() };
+        assert_eq!(bits(&got.centre.data), bits(&film_at(&film.centre)));
+        assert_eq!(bits(&got.half_width.data), bits(&film_at(&film.half_width)));
+        assert_eq!(bits(&got.own_se.data), bits(&film_at(&film.own_se)));
+        let counts: Vec<u32> = at.iter().map(|&px| film.count[px]).collect();
+        assert_eq!(got.count, counts);
+        assert_eq!((got.count[2], got.count[3]), (0, 1));
+        assert!(
+            got.half_width
+                .data
+                .iter()
+                .flatten()
+                .any(|w| w.is_finite() && *w > 0.0)
         );
     }
 

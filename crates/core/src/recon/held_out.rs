@@ -160,19 +160,9 @@ impl Decided {
         out[places].copy_from_slice(&window.denoise_at(&band.header, &at));
     }
 
-    /// `from(i)` of the decided pixels of `band`'s own rows (i their
-    /// index among the band's folded pixels), each written to its place
-    /// in `out` (one per decided pixel, in their order).
-    pub(crate) fn gather<T>(&self, band: &RowBand, from: impl Fn(usize) -> T, out: &mut [T]) {
-        let (places, at) = self.in_band(band);
-        for (o, i) in out[places].iter_mut().zip(at) {
-            *o = from(i);
-        }
-    }
-
     /// Where the decided pixels of `band`'s own rows lie in the order, and
     /// each one's index among the band's folded pixels.
-    fn in_band(&self, band: &RowBand) -> (std::ops::Range<usize>, Vec<usize>) {
+    pub(crate) fn in_band(&self, band: &RowBand) -> (std::ops::Range<usize>, Vec<usize>) {
         let first = band.pixels.start;
         let own = first + band.own.start..first + band.own.end;
         let from = self.0.partition_point(|&px| px < own.start);
@@ -184,7 +174,7 @@ impl Decided {
     }
 
     /// Intervals at the decided pixels, in their order, before any
-    /// band's are [`Decided::put_interval`]: none has a sample.
+    /// band's are put ([`Interval::put_at`]): none has a sample.
     pub(crate) fn empty_interval(&self, z: f64) -> Interval {
         let row = || self.map(|_| [0.0; 3]);
         Interval {
@@ -194,16 +184,6 @@ impl Decided {
             own_se: row(),
             z,
         }
-    }
-
-    /// `from`, a band's intervals made from its folds, at the decided
-    /// pixels of its own rows, put in their places in `at`
-    /// ([`Decided::empty_interval`]).
-    pub(crate) fn put_interval(&self, band: &RowBand, from: &Interval, at: &mut Interval) {
-        self.gather(band, |i| from.centre.data[i], &mut at.centre.data);
-        self.gather(band, |i| from.half_width.data[i], &mut at.half_width.data);
-        self.gather(band, |i| from.count[i], &mut at.count);
-        self.gather(band, |i| from.own_se.data[i], &mut at.own_se.data);
     }
 
     /// How many pixels are decided.

@@ -84,8 +84,7 @@ impl Estimators<'_, '_> {
     /// and as [`guided::floor`]s of their accepted ones, from one read of
     /// the dump at the pixels `wanted` marks (all where None), band by
     /// band with `halo` rows either side (one at least); `also(band, k,
-    /// folds, all)` is given each band's folds of half k with their
-    /// intervals.
+    /// folds)` is given each band's folds of half k.
     fn halves_at<S: Default + Clone + Send>(
         &self,
         decided: &Decided,
@@ -93,7 +92,7 @@ impl Estimators<'_, '_> {
         wanted: Option<&[bool]>,
         add: impl Fn(&mut S, [f64; 3]) + Sync,
         accepted_moments: impl Fn(&HalfFold<S>) -> &Moments,
-        mut also: impl FnMut(&RowBand, usize, &[&HalfFold<S>], &Interval),
+        mut also: impl FnMut(&RowBand, usize, &[&HalfFold<S>]),
     ) -> [HalfAt; 2] {
         let decisions = self
             .decisions
@@ -107,14 +106,25 @@ impl Estimators<'_, '_> {
         let bands = held_out::bands::<S>(h, halo, held_out::BAND_BYTES);
         let accepted = |i| Decision::accepted(decisions[i]);
         held_out::fold_halves(records, h, &bands, wanted, accepted, add, |band, folds| {
-            let bh = &band.header;
+            let (bh, (places, pixels)) = (&band.header, decided.in_band(band));
             for (k, at) in at.iter_mut().enumerate() {
                 let half = held_out::half_of(folds, k);
-                let all = confidence::from_moments_of(&half, |f| &f.all, bh, confidence::Z);
-                let a = confidence::from_moments_of(&half, |f| accepted_moments(f), bh, guide_z);
-                decided.put_interval(band, &all, &mut at.all);
-                decided.gather(band, |i| guided::floor(&a, i), &mut at.floors.data);
-                also(band, k, &half, &all);
+                let z = confidence::Z;
+                let all = confidence::from_moments_at(&half, |f| &f.all, bh, z, &pixels);
+                let a = confidence::from_moments_at(
+                    &half,
+                    |f| accepted_moments(f),
+                    bh,
+                    guide_z,
+                    &pixels,
+                );
+                at.all.put_at(places.clone(), &all);
+                let floors = &mut at.floors.data[places.clone()];
+                floors
+                    .iter_mut()
+                    .enumerate()
+                    .for_each(|(i, f)| *f = guided::floor(&a, i));
+                also(band, k, &half);
             }
         });
         at
@@ -123,14 +133,17 @@ impl Estimators<'_, '_> {
     /// `guided_oidn`'s image made from each half's samples alone, kept
     /// with the half's intervals at the `decided` pixels.
     fn guided_oidn_halves(&self, decided: &Decided) -> Result<[Half; 2], OidnError> {
-        // OIDN, the run's peak, needs only each half's means and counts:
-        // the rest of the film's intervals is not kept.
+        // OIDN, the run's peak, needs only each half's means and counts
+        // over the film; its intervals are made at the decided pixels.
         let h = self.shared.header;
         let mut mean = [Image::for_header(h), Image::for_header(h)];
         let mut count = [(); 2].map(|_| vec![0; h.pixels() * h.frames as usize]);
-        let film = |band: &RowBand, k: usize, _: &[&_], all: &Interval| {
-            band.put(&mut mean[k].data, &all.centre.data);
-            band.put(&mut count[k], &all.count);
+        let film = |band: &RowBand, k: usize, folds: &[&HalfFold<Moments>]| {
+            let own = band.own.clone();
+            let (mean, count) = (band.own_of(&mut mean[k].data), band.own_of(&mut count[k]));
+            for ((m, n), f) in mean.iter_mut().zip(count).zip(&folds[own]) {
+                (*m, *n) = (f.all.mean, f.all.n);
+            }
         };
         let at = self.halves_at(decided, 1, None, Moments::add, |f| &f.accepted, film);
         let mut halves = Vec::with_capacity(2);
@@ -191,7 +204,7 @@ impl Estimators<'_, '_> {
         let wanted = (!wanted.iter().all(|&w| w)).then_some(&wanted[..]);
         let guide = self.guide();
         let mut denoised = [(); 2].map(|_| vec![[0.0; 3]; decided.len()]);
-        let window = |band: &RowBand, k: usize, folds: &[&HalfFold<Stats>], _: &Interval| {
+        let window = |band: &RowBand, k: usize, folds: &[&HalfFold<Stats>]| {
             let g = guide.map(|g| g.of(band.pixels.clone()));
             decided.window_at(band, folds, g, &mut denoised[k]);
         };

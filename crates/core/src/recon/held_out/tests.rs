@@ -222,9 +222,10 @@ fn a_half_folded_around_the_decided_pixels_is_the_whole_halfs_there() {
             |band, folds: &[Halves<Stats>]| {
                 let folds = half_of(folds, 0);
                 decided.window_at(band, &folds, None, &mut denoised);
+                let (places, pixels) = decided.in_band(band);
                 let bh = &band.header;
-                let all = confidence::from_moments_of(&folds, |f| &f.all, bh, 3.0);
-                decided.put_interval(band, &all, &mut at);
+                let all = confidence::from_moments_at(&folds, |f| &f.all, bh, 3.0, &pixels);
+                at.put_at(places, &all);
             },
         );
         let bits =
