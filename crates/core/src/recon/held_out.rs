@@ -110,8 +110,8 @@ pub(crate) fn half_of<S>(folds: &[Halves<S>], k: usize) -> Vec<&HalfFold<S>> {
 
 /// The pixels the halves decide, in order: some channel white in both G
 /// and x̄ ([`Whites::shown`]) and four valid samples or more (two in each
-/// half). The decision reads the halves there alone, so only those
-/// pixels of a half are kept while the other is made.
+/// half). The decision reads the halves there alone, so of each half
+/// only those pixels are kept.
 pub struct Decided(Vec<usize>);
 
 impl Decided {
@@ -234,7 +234,7 @@ pub struct Half(Vec<HalfPixel>);
 
 impl Half {
     /// The half's `image` and its intervals `all`, both at the decided
-    /// pixels in their order ([`Decided::image`], [`Decided::interval`]).
+    /// pixels in their order ([`Decided::image`], [`Decided::empty_interval`]).
     pub fn new(image: &Image, all: &Interval) -> Half {
         debug_assert_eq!(image.data.len(), all.count.len());
         let at = |i: usize| HalfPixel {

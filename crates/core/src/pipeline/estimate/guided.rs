@@ -145,14 +145,15 @@ impl Estimators<'_, '_> {
                 (*m, *n) = (f.all.mean, f.all.n);
             }
         };
-        let at = self.halves_at(decided, 1, None, Moments::add, |f| &f.accepted, film);
-        let mut halves = Vec::with_capacity(2);
-        for ((mean, count), at) in mean.into_iter().zip(count).zip(&at) {
+        let [at0, at1] = self.halves_at(decided, 1, None, Moments::add, |f| &f.accepted, film);
+        let ([mean0, mean1], [count0, count1]) = (mean, count);
+        // Each half's film goes once OIDN has denoised it.
+        let half = |mean: Image, count: Vec<u32>, at: HalfAt| -> Result<Half, OidnError> {
             let d = imagespace::oidn::denoise(&mean, &count, self.aux)?;
             drop((mean, count));
-            halves.push(self.steered_half(&decided.image(&d.image), at));
-        }
-        Ok(halves.try_into().ok().expect("two halves"))
+            Ok(self.steered_half(&decided.image(&d.image), &at))
+        };
+        Ok([half(mean0, count0, at0)?, half(mean1, count1, at1)?])
     }
 
     /// A half's `denoised` image at the decided pixels, in their order,
@@ -217,17 +218,14 @@ impl Estimators<'_, '_> {
             |f| f.accepted.as_ref(),
             window,
         );
-        let mut k = 0..2;
-        denoised.map(|data| {
-            let at = &at[k.next().expect("two halves")];
-            let denoised = Image {
-                width: data.len(),
-                height: 1,
-                frames: 1,
-                data,
-            };
-            self.steered_half(&denoised, at)
-        })
+        let row = |data: Vec<[f64; 3]>| Image {
+            width: data.len(),
+            height: 1,
+            frames: 1,
+            data,
+        };
+        let ([d0, d1], [at0, at1]) = (denoised, at);
+        [(d0, at0), (d1, at1)].map(|(d, at)| self.steered_half(&row(d), &at))
     }
 }
 
@@ -288,9 +286,14 @@ mod tests {
             ..h.clone()
         };
         assert_eq!(image(&records, &h), image(&records, &scan));
-        // Pass 2's sample of pixel (3, 35) lies in pixel (10, 35).
+        // Pass 2's sample of pixel (3, 35) lies in the light's pixel
+        // (5, 12), whose band was given before the one that finds it:
+        // what that band made is made again from the film.
         let mut misplaced = records.clone();
-        misplaced[2 * 24 * 40 + 35 * 24 + 3].x = 10.5;
-        assert_eq!(image(&misplaced, &h), image(&misplaced, &scan));
+        misplaced[2 * 24 * 40 + 35 * 24 + 3].x = 5.5;
+        misplaced[2 * 24 * 40 + 35 * 24 + 3].y = 12.5;
+        let moved = image(&misplaced, &h);
+        assert_ne!(moved, image(&records, &h));
+        assert_eq!(moved, image(&misplaced, &scan));
     }
 }

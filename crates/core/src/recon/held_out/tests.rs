@@ -180,8 +180,8 @@ fn bands_make_the_films_intervals_and_window() {
 /// intervals of the half folded whole, bit for bit, whether its bands
 /// are the film, a frame or a few rows each: a run of the window longer than
 /// its runs, pixels near enough to share one, scattered pixels, film
-/// edges, both frames. One pixel of
-/// margin less changes them.
+/// edges, both frames; and where a record out of its place sends the
+/// bands back to the whole film. One pixel of margin less changes them.
 #[test]
 fn a_half_folded_around_the_decided_pixels_is_the_whole_halfs_there() {
     use crate::dump::Order;
@@ -209,12 +209,12 @@ fn a_half_folded_around_the_decided_pixels_is_the_whole_halfs_there() {
     let add = statmc::stats_adder();
     let first = half_k(&whole(&records, &h, accepted, add), 0);
     let whole_film = statmc::Window::new(&first, &h, None).denoise(&h);
-    let half = |wanted: &[bool], bands: &[RowBand]| {
+    let half = |records: &[Record], h: &Header, wanted: &[bool], bands: &[RowBand]| {
         let mut denoised = vec![[0.0; 3]; decided.len()];
         let mut at = decided.empty_interval(3.0);
         fold_halves(
-            &records,
-            &h,
+            records,
+            h,
             bands,
             Some(wanted),
             accepted,
@@ -234,11 +234,12 @@ fn a_half_folded_around_the_decided_pixels_is_the_whole_halfs_there() {
             bits(&denoised),
             bits(&at.centre.data),
             bits(&at.half_width.data),
+            bits(&at.own_se.data),
             at.count,
         )
     };
     let film_band = [RowBand::film(&h)];
-    let everything = half(&vec![true; film], &film_band);
+    let everything = half(&records, &h, &vec![true; film], &film_band);
     let at_decided: Vec<[f64; 3]> = decided.0.iter().map(|&px| whole_film.data[px]).collect();
     let whole_bits: Vec<u64> = at_decided.iter().flatten().map(|v| v.to_bits()).collect();
     assert_eq!(everything.0, whole_bits);
@@ -247,11 +248,28 @@ fn a_half_folded_around_the_decided_pixels_is_the_whole_halfs_there() {
     for budget in [usize::MAX, 2 * 300 * size_of::<Halves<Stats>>()] {
         let bands = bands::<Stats>(&h, statmc::HALO, budget);
         assert!(bands.len() >= 2);
-        assert_eq!(half(&around, &bands), everything);
+        assert_eq!(half(&records, &h, &around, &bands), everything);
     }
-    assert_eq!(half(&around, &film_band), everything);
+    assert_eq!(half(&records, &h, &around, &film_band), everything);
     let less = decided.around(&h, statmc::HALO - 1);
-    assert_ne!(half(&less, &film_band).0, everything.0);
+    assert_ne!(half(&records, &h, &less, &film_band).0, everything.0);
+    // Pass 2's sample of pixel (150, 20) lies in row 5's decided run: the
+    // bands read in place before the one that finds it are made again
+    // from the whole film, as a scan of the same records makes them.
+    let mut moved = records.clone();
+    let r = &mut moved[2 * h.pixels() + 20 * 300 + 150];
+    (r.x, r.y) = (100.5, 5.5);
+    let scan = Header {
+        order: Order::Unspecified,
+        ..h.clone()
+    };
+    let bands = bands::<Stats>(&h, statmc::HALO, 2 * 300 * size_of::<Halves<Stats>>());
+    let placed = half(&moved, &h, &around, &bands);
+    assert_eq!(
+        placed,
+        half(&moved, &scan, &around, &[RowBand::film(&scan)])
+    );
+    assert_ne!(placed, everything);
 }
 
 /// The pixels around the decided ones are those within r each way in
